@@ -10,6 +10,9 @@ PD hold statically stable, used to check that the model itself stands without dr
 
 from __future__ import annotations
 
+import copy
+
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -45,10 +48,20 @@ def gravity_compensated_targets_rad(
     return q[robot.joint_q_index] + static_stand_torques_nm(robot, q) / kp
 
 
-def hold_gain_scale(robot: G1Pinocchio, q: np.ndarray, margin: float = 1.5) -> float:
+def hold_gain_scale(robot: G1Pinocchio, q: np.ndarray, margin: float = 2.0) -> float:
     """Multiplier of the table gains making the ankle springs ``margin`` times stiffer than m g h."""
     data = robot.data()
     com_z = pin.centerOfMass(robot.model, data, q)[2]
     pendulum_stiffness = robot.total_mass_kg * 9.81 * com_z
     ankle_stiffness = sum(j.motor.kp for j in g1.JOINTS if j.name.endswith("ankle_pitch_joint"))
     return max(1.0, margin * pendulum_stiffness / ankle_stiffness)
+
+
+def with_scaled_gains(model: mujoco.MjModel, scale: float) -> mujoco.MjModel:
+    """A copy of ``model`` whose position-actuator gains Kp and Kd are both scaled by ``scale``
+    (damping grows with stiffness so the whole-body sway stays well damped)."""
+    scaled = copy.deepcopy(model)
+    scaled.actuator_gainprm[:, 0] *= scale
+    scaled.actuator_biasprm[:, 1] *= scale
+    scaled.actuator_biasprm[:, 2] *= scale
+    return scaled
