@@ -18,6 +18,7 @@ contact MuJoCo has, and four corners give a proper support polygon (centre of pr
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -154,11 +155,17 @@ def _world(spec: mujoco.MjSpec, cfg: MujocoModelConfig) -> None:
 
 def build_mujoco_spec(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.MjSpec:
     """Build the editable ``MjSpec`` of the G1 (compile it with ``spec.compile()``)."""
-    spec = mujoco.MjSpec.from_file(str(g1_urdf_path()))
+    # Keep the URDF's visual meshes (MuJoCo discards them by default) and strip package:// paths.
+    urdf = re.sub(
+        r"(<robot[^>]*>)",
+        r'\1<mujoco><compiler discardvisual="false" strippath="true"/></mujoco>',
+        g1_urdf_path().read_text(),
+        count=1,
+    )
+    spec = mujoco.MjSpec.from_string(urdf)
     spec.meshdir = str(g1_mesh_dir())
-    spec.compiler.discardvisual = False  # keep the meshes we turn into visual-only geoms
     for mesh in spec.meshes:
-        mesh.file = os.path.basename(mesh.file)  # package://example-robot-data/... -> file name
+        mesh.file = os.path.basename(mesh.file)
     pelvis = spec.body(g1.BASE_LINK)
     pelvis.add_freejoint(name="floating_base")
     pelvis.add_camera(
@@ -167,15 +174,18 @@ def build_mujoco_spec(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.Mj
         pos=[0.0, -3.0, 0.3],
         xyaxes=[1, 0, 0, 0, 0, 1],
     )
+    collide_floor = cfg.body_floor_collision or cfg.self_collision
     for geom in list(spec.geoms):
-        if geom.type == mujoco.mjtGeom.mjGEOM_SPHERE:
+        if geom.contype == 0 and geom.conaffinity == 0:
+            geom.group = 1  # URDF visual mesh
+        elif geom.type == mujoco.mjtGeom.mjGEOM_SPHERE:
             spec.delete(geom)  # the URDF's tiny 5 mm sole spheres; replaced by _soles
-        elif geom.type == mujoco.mjtGeom.mjGEOM_MESH:
-            # Floor: contype 1, conaffinity 3. Meshes: contype 2 (-> floor), conaffinity 2 (-> meshes).
-            geom.contype = 2 if (cfg.body_floor_collision or cfg.self_collision) else 0
+        else:
+            # URDF collision mesh / cylinder. Floor: contype 1, conaffinity 3; these: contype 2
+            # (-> floor) and conaffinity 2 (-> each other, only with self_collision).
+            geom.contype = 2 if collide_floor else 0
             geom.conaffinity = 2 if cfg.self_collision else 0
-            geom.group = 1
-            geom.density = 0.0
+            geom.group = 3
     _sites_for_frames(spec)
     _soles(spec, cfg)
     _actuators(spec, cfg)

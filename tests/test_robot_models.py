@@ -156,3 +156,14 @@ def test_missing_description_gives_an_actionable_error(monkeypatch, tmp_path):
     monkeypatch.setenv("A2CF_G1_DESCRIPTION_DIR", str(tmp_path))
     with pytest.raises(RobotAssetError, match="A2CF_G1_DESCRIPTION_DIR"):
         g1_description_dir()
+
+
+def test_every_urdf_visual_is_rendered_and_soles_collide(g1_mj):
+    from robots.assets import g1_urdf_path
+
+    visual_geoms = [i for i in range(g1_mj.ngeom) if g1_mj.geom_group[i] == 1]
+    assert len(visual_geoms) == g1_urdf_path().read_text().count("<visual>")
+    assert all(g1_mj.geom_contype[i] == 0 for i in visual_geoms)
+    for side in g1.SOLE_FRAMES:
+        for i in range(4):
+            assert g1_mj.geom_contype[g1_mj.geom(f"{side}_{i}").id] == 1
