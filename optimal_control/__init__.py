@@ -1,0 +1,1 @@
+"""Model-based oracle for the G1: wrench QP, references (walk, dance, backflip), bounds, artifacts."""

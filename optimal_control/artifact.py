@@ -1,0 +1,384 @@
+"""The OracleArtifact: what the oracle hands to learning, on disk, versioned and validated on load.
+
+A folder::
+
+    oracle.json     summary: kind, version, task, phases, eta0 (+ rule, novice model), alpha sweep
+                    with solver stats and per-phase envelopes, the paper's hand-set eta0, extras
+    arrays.npz      the reference (``ref_*``), the wrench profile of each swept alpha
+                    (``alpha_<a>_*``, e.g. ``alpha_0.50_wrench_w``), ``eta0`` and task extras
+                    (``extra_*``)
+    plots/          wrench_<a>.png (components over time, phases shaded), eta0.png
+    reference.mp4   the reference motion rendered with MuJoCo (when rendering was available)
+
+Readers that must not import solver code (``rl``) read ``oracle.json`` only: ``eta0`` is a list of
+per-phase rows ``[fx, fy, fz, mx, my, mz]`` (world-frame force [N] and torque [N m] at the pelvis
+CoM, i.e. MuJoCo ``xfrc_applied`` of the pelvis) in the order of ``phase_names``; the warm-start
+dataset is ``arrays.npz``: ``ref_q``, ``ref_v``, ``ref_contacts``, ``ref_phase`` and
+``wrench_w`` (the novice profile). The artifact is generic in the number and names of phases and
+accepts task-specific arrays (``extra_arrays``) and JSON fields (``extra_summary``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0, BoundRule, envelope_per_phase
+from optimal_control.reference import Reference
+from optimal_control.wrench_qp import WrenchProfile
+
+ARTIFACT_KIND = "a2cf-mb/oracle"
+ARTIFACT_VERSION = 1
+SUMMARY_FILE = "oracle.json"
+ARRAYS_FILE = "arrays.npz"
+VIDEO_FILE = "reference.mp4"
+PLOTS_DIR = "plots"
+
+
+class ArtifactError(ValueError):
+    """An oracle artifact folder is missing, malformed or of another version."""
+
+
+def alpha_key(alpha: float) -> str:
+    """Array-key prefix of the profile for ``alpha`` (e.g. ``alpha_0.50_``)."""
+    return f"alpha_{alpha:.2f}_"
+
+
+@dataclass
+class OracleArtifact:
+    """Everything the oracle computed for one task (see the module docstring for the files)."""
+
+    task: str  # task name ("walk", "dance", "backflip", ...)
+    reference: Reference  # the motion the wrenches were computed along
+    profiles: dict[float, WrenchProfile]  # alpha -> per-frame QP result
+    eta0: np.ndarray  # (num_phases, 6) initial bound [N, N m]
+    rule: BoundRule  # how eta0 was derived
+    novice_model: str  # name/description of the novice model eta0 reads
+    extra_summary: dict = field(default_factory=dict)  # task-specific JSON fields
+    extra_arrays: dict[str, np.ndarray] = field(default_factory=dict)  # task-specific arrays
+    video: str | None = None  # file name of the video inside the folder, if any
+    video_note: str = ""  # why there is no video, if none
+    created_utc: str = ""  # creation time (ISO 8601), filled by save
+    git_revision: str = ""  # project revision, filled by save
+
+    @property
+    def phase_names(self) -> tuple[str, ...]:
+        """Names of the phases, one per row of ``eta0``."""
+        return self.reference.phase_names
+
+    @property
+    def novice_profile(self) -> WrenchProfile:
+        """The profile of the rule's novice alpha (the one eta0 was derived from)."""
+        return self.profiles[self._alpha_lookup(self.rule.novice_alpha)]
+
+    def _alpha_lookup(self, alpha: float) -> float:
+        for key in self.profiles:
+            if abs(key - alpha) < 1e-9:
+                return key
+        raise ArtifactError(
+            f"Artifact '{self.task}' has no profile for alpha = {alpha}; swept: "
+            f"{sorted(self.profiles)}."
+        )
+
+    def eta0_dict(self) -> dict[str, dict[str, list[float]]]:
+        """eta0 per phase name as {"force_n": [3], "torque_nm": [3]}."""
+        return {
+            name: {"force_n": self.eta0[p, :3].tolist(), "torque_nm": self.eta0[p, 3:].tolist()}
+            for p, name in enumerate(self.phase_names)
+        }
+
+    def validate(self) -> OracleArtifact:
+        """Check consistency (phases, shapes, finiteness, novice alpha present); return self."""
+        self.reference.validate()
+        num_phases = len(self.phase_names)
+        t = self.reference.num_frames
+        eta0 = np.asarray(self.eta0, dtype=float)
+        if eta0.shape != (num_phases, 6):
+            raise ArtifactError(
+                f"eta0 has shape {eta0.shape}, expected ({num_phases}, 6) for phases "
+                f"{self.phase_names}."
+            )
+        if not np.all(np.isfinite(eta0)) or np.any(eta0 < 0):
+            raise ArtifactError(f"eta0 must be finite and >= 0, got {eta0.tolist()}.")
+        if not self.profiles:
+            raise ArtifactError("An oracle artifact needs at least one wrench profile (alpha).")
+        for alpha, prof in self.profiles.items():
+            if prof.wrench_w.shape != (t, 6):
+                raise ArtifactError(
+                    f"Profile alpha={alpha}: wrench_w has shape {prof.wrench_w.shape}, expected "
+                    f"({t}, 6) (one row per reference frame)."
+                )
+            if not np.all(np.isfinite(prof.wrench_w)):
+                raise ArtifactError(f"Profile alpha={alpha}: wrench_w has NaN/inf.")
+        self._alpha_lookup(self.rule.novice_alpha)
+        self.eta0 = eta0
+        return self
+
+    def summary(self) -> dict:
+        """The JSON summary written to ``oracle.json``."""
+        num_phases = len(self.phase_names)
+        sweep = {}
+        for alpha in sorted(self.profiles, reverse=True):
+            prof = self.profiles[alpha]
+            env = envelope_per_phase(prof.wrench_w, self.reference.phase, num_phases)
+            sweep[f"{alpha:.2f}"] = {
+                "solver": prof.stats(),
+                "envelope": {k: np.nan_to_num(v).tolist() for k, v in env.items()},
+                "unaided_fraction_per_phase": [
+                    float(prof.unaided[self.reference.phase == p].mean())
+                    if np.any(self.reference.phase == p)
+                    else None
+                    for p in range(num_phases)
+                ],
+            }
+        paper = PAPER_ETA0.get(self.task)
+        return {
+            "kind": ARTIFACT_KIND,
+            "version": ARTIFACT_VERSION,
+            "task": self.task,
+            "created_utc": self.created_utc,
+            "git_revision": self.git_revision,
+            "phase_names": list(self.phase_names),
+            "axes": list(AXIS_NAMES),
+            "wrench_frame": "world-frame force [N] and torque [N m] at the pelvis body CoM "
+            "(MuJoCo xfrc_applied of the pelvis)",
+            "eta0": self.eta0.tolist(),
+            "eta0_per_phase": self.eta0_dict(),
+            "rule": self.rule.to_dict(),
+            "novice_model": self.novice_model,
+            "alphas": sorted(self.profiles, reverse=True),
+            "alpha_sweep": sweep,
+            "reference": {
+                "name": self.reference.name,
+                "frames": self.reference.num_frames,
+                "dt_s": self.reference.dt,
+                "duration_s": self.reference.duration_s,
+                "phase_frames": [int(np.sum(self.reference.phase == p)) for p in range(num_phases)],
+                "contact_fraction": self.reference.contacts.mean(axis=0).tolist(),
+            },
+            "paper_eta0": paper["all"] if paper else None,
+            "video": self.video,
+            "video_note": self.video_note,
+            "files": {"arrays": ARRAYS_FILE, "plots": PLOTS_DIR},
+            "extra": self.extra_summary,
+        }
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """All arrays written to ``arrays.npz``."""
+        out = self.reference.to_arrays("ref_")
+        for alpha, prof in self.profiles.items():
+            out.update(prof.to_arrays(alpha_key(alpha)))
+        out["eta0"] = self.eta0
+        out["wrench_w"] = self.novice_profile.wrench_w
+        out["alphas"] = np.array(sorted(self.profiles, reverse=True))
+        out.update({f"extra_{k}": np.asarray(v) for k, v in self.extra_arrays.items()})
+        return out
+
+    def save(self, folder: str | Path, plots: bool = True) -> Path:
+        """Write the artifact to ``folder`` (created); returns its path."""
+        self.validate()
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        self.created_utc = self.created_utc or _dt.datetime.now(_dt.timezone.utc).isoformat()
+        self.git_revision = self.git_revision or _git_revision()
+        np.savez_compressed(folder / ARRAYS_FILE, **self.arrays())
+        if plots:
+            write_plots(self, folder / PLOTS_DIR)
+        (folder / SUMMARY_FILE).write_text(json.dumps(self.summary(), indent=2))
+        return folder
+
+    @classmethod
+    def load(cls, folder: str | Path) -> OracleArtifact:
+        """Read and validate an artifact folder written by :meth:`save`."""
+        folder = Path(folder)
+        summary_path = folder / SUMMARY_FILE
+        if not summary_path.is_file():
+            raise ArtifactError(
+                f"'{folder}' is not an oracle artifact: {SUMMARY_FILE} is missing. Create one with "
+                "`a2cf-mb solve-walk`, `solve-dance` or `solve-backflip`."
+            )
+        try:
+            summary = json.loads(summary_path.read_text())
+        except json.JSONDecodeError as err:
+            raise ArtifactError(f"{summary_path} is not valid JSON: {err}") from err
+        if summary.get("kind") != ARTIFACT_KIND:
+            raise ArtifactError(f"{summary_path}: kind is {summary.get('kind')!r}, not oracle.")
+        if summary.get("version") != ARTIFACT_VERSION:
+            raise ArtifactError(
+                f"{summary_path}: artifact version {summary.get('version')} but this code reads "
+                f"version {ARTIFACT_VERSION}; regenerate the artifact."
+            )
+        for key in ("task", "phase_names", "eta0", "rule", "novice_model", "alphas"):
+            if key not in summary:
+                raise ArtifactError(f"{summary_path}: required field '{key}' is missing.")
+        arrays_path = folder / ARRAYS_FILE
+        if not arrays_path.is_file():
+            raise ArtifactError(f"'{folder}': {ARRAYS_FILE} is missing.")
+        with np.load(arrays_path) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        try:
+            reference = Reference.from_arrays(
+                arrays, tuple(summary["phase_names"]), summary["reference"]["name"]
+            )
+            profiles = {
+                float(alpha): _profile_from_arrays(arrays, float(alpha))
+                for alpha in summary["alphas"]
+            }
+        except KeyError as err:
+            raise ArtifactError(f"{arrays_path}: array {err} is missing.") from err
+        return cls(
+            task=summary["task"],
+            reference=reference,
+            profiles=profiles,
+            eta0=np.asarray(summary["eta0"], dtype=float),
+            rule=BoundRule.from_dict(summary["rule"]),
+            novice_model=summary["novice_model"],
+            extra_summary=summary.get("extra", {}),
+            extra_arrays={k[6:]: v for k, v in arrays.items() if k.startswith("extra_")},
+            video=summary.get("video"),
+            video_note=summary.get("video_note", ""),
+            created_utc=summary.get("created_utc", ""),
+            git_revision=summary.get("git_revision", ""),
+        ).validate()
+
+
+def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchProfile:
+    p = alpha_key(alpha)
+    n = arrays[f"{p}wrench_w"].shape[0]
+    return WrenchProfile(
+        alpha=alpha,
+        wrench_w=arrays[f"{p}wrench_w"],
+        contact_wrench_w=arrays[f"{p}contact_wrench_w"],
+        corner_forces_w=arrays[f"{p}corner_forces_w"],
+        tau_nm=arrays[f"{p}tau_nm"],
+        residual=arrays[f"{p}residual"],
+        solved=arrays[f"{p}solved"].astype(bool),
+        unaided=arrays[f"{p}unaided"].astype(bool),
+        iterations=arrays[f"{p}iterations"],
+        solve_time_s=arrays[f"{p}solve_time_s"],
+        status=["loaded"] * n,
+    )
+
+
+def _git_revision() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=False,
+            cwd=Path(__file__).resolve().parent,
+        )
+    except OSError:
+        return ""
+    return out.stdout.strip()
+
+
+def _shade_phases(ax, time_s: np.ndarray, phase: np.ndarray, colors) -> None:
+    starts = np.flatnonzero(np.diff(phase, prepend=-1))
+    ends = np.append(starts[1:], len(phase))
+    dt = time_s[1] - time_s[0] if len(time_s) > 1 else 1.0
+    for s, e in zip(starts, ends, strict=True):
+        ax.axvspan(time_s[s], time_s[e - 1] + dt, color=colors[phase[s] % len(colors)], alpha=0.15)
+
+
+def write_plots(art: OracleArtifact, folder: Path) -> list[Path]:
+    """Wrench components over time (phases shaded) per alpha, and eta0 per phase; returns paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    folder.mkdir(parents=True, exist_ok=True)
+    ref = art.reference
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    paths = []
+    for alpha in sorted(art.profiles, reverse=True):
+        prof = art.profiles[alpha]
+        fig, axes = plt.subplots(6, 1, figsize=(10, 11), sharex=True)
+        for i, ax in enumerate(axes):
+            _shade_phases(ax, ref.time_s, ref.phase, colors)
+            ax.plot(ref.time_s, prof.wrench_w[:, i], color="k", lw=1.0)
+            p = ref.phase
+            ax.plot(ref.time_s, art.eta0[p, i], color="tab:red", lw=0.8, ls="--")
+            ax.plot(ref.time_s, -art.eta0[p, i], color="tab:red", lw=0.8, ls="--")
+            unit = "N" if i < 3 else "N m"
+            ax.set_ylabel(f"{AXIS_NAMES[i]} [{unit}]")
+            ax.grid(alpha=0.3)
+        axes[-1].set_xlabel("time [s]")
+        handles = [
+            Patch(color=colors[k % len(colors)], alpha=0.3, label=n)
+            for k, n in enumerate(art.phase_names)
+        ]
+        axes[0].legend(handles=handles, loc="upper right", fontsize=7, ncol=len(handles))
+        fig.suptitle(
+            f"{art.task}: least pelvis wrench, alpha = {alpha:.2f} (dashed: eta0, rule at "
+            f"alpha {art.rule.novice_alpha:.2f})"
+        )
+        fig.tight_layout()
+        path = folder / f"wrench_{alpha:.2f}.png"
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        paths.append(path)
+    fig, ax = plt.subplots(figsize=(9, 4))
+    num = len(art.phase_names)
+    paper = PAPER_ETA0.get(art.task, {}).get("all")
+    width = 0.8 / (num + (1 if paper else 0))
+    x = np.arange(6)
+    for p, name in enumerate(art.phase_names):
+        ax.bar(x + p * width, art.eta0[p], width, label=f"oracle: {name}")
+    if paper:
+        rows = np.asarray(paper)
+        ax.bar(
+            x + num * width, rows.max(axis=0), width, color="0.6", label="paper (max over phases)"
+        )
+    ax.set_xticks(
+        x + 0.4 - width / 2, [f"{a} [{'N' if i < 3 else 'Nm'}]" for i, a in enumerate(AXIS_NAMES)]
+    )
+    ax.set_ylabel("eta0")
+    ax.set_title(f"{art.task}: eta0 per phase ({art.rule.name})")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    path = folder / "eta0.png"
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    paths.append(path)
+    return paths
+
+
+def build_artifact(
+    task: str,
+    reference: Reference,
+    profiles: dict[float, WrenchProfile],
+    rule: BoundRule = BoundRule(),
+    novice_model: str = "",
+    extra_summary: dict | None = None,
+    extra_arrays: dict[str, np.ndarray] | None = None,
+) -> OracleArtifact:
+    """Derive eta0 from the novice profile by ``rule`` and assemble a validated artifact."""
+    from optimal_control.bounds import eta0_per_phase
+
+    art = OracleArtifact(
+        task=task,
+        reference=reference,
+        profiles=profiles,
+        eta0=np.zeros((len(reference.phase_names), 6)),
+        rule=rule,
+        novice_model=novice_model
+        or (
+            f"per-frame wrench QP along the fixed reference, joint torques limited to "
+            f"alpha = {rule.novice_alpha:g} x effort limit"
+        ),
+        extra_summary=extra_summary or {},
+        extra_arrays=extra_arrays or {},
+    )
+    novice = art.novice_profile
+    art.eta0 = eta0_per_phase(novice.wrench_w, reference.phase, len(reference.phase_names), rule)
+    return art.validate()

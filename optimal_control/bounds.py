@@ -1,0 +1,101 @@
+"""From a wrench envelope to the initial assist bound eta0 (per task phase and wrench axis).
+
+The A2CF force agent squashes its output into a 6-D hypercube ``eta`` per phase; the paper sets
+the initial hypercube ``eta0`` by hand (its Table "Initial Distribution of Spatial Force", kept
+here as :data:`PAPER_ETA0` for comparison). The oracle derives it from the wrench a *novice* needs:
+the per-frame QP following the reference with torque limits scaled by ``novice_alpha``.
+
+Rule ``percentile_margin`` (the default, :class:`BoundRule`)::
+
+    eta0[p, i] = max(floor_i, margin * percentile_P(|w_i(t)| for frames t of phase p))
+
+with ``floor_i`` = ``floor_force_n`` for the force axes and ``floor_torque_nm`` for the torque axes.
+The floor keeps a little room on axes the envelope says are never needed (a learner deviates from
+the reference), the margin covers the learner's deviation on axes that are needed. A phase with no
+frame gets the floor. The rule's name and parameters are stored in every artifact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+AXIS_NAMES = ("fx", "fy", "fz", "mx", "my", "mz")
+"""Wrench axes: world-frame force [N] then torque [N m] at the pelvis CoM."""
+
+PAPER_ETA0: dict[str, dict[str, list[list[float]]]] = {
+    "walk": {"all": [[40.0, 40.0, 10.0, 40.0, 40.0, 40.0]]},
+    "dance": {"all": [[40.0, 40.0, 40.0, 40.0, 40.0, 40.0]]},
+    "backflip": {
+        "all": [
+            [40.0, 40.0, 10.0, 30.0, 30.0, 10.0],
+            [40.0, 40.0, 10.0, 30.0, 30.0, 10.0],
+            [40.0, 40.0, 100.0, 30.0, 30.0, 30.0],
+            [40.0, 40.0, 100.0, 30.0, 30.0, 30.0],
+            [40.0, 40.0, 10.0, 30.0, 30.0, 10.0],
+        ]
+    },
+}
+"""The paper's hand-set eta0 rows [fx, fy, fz (N), mx, my, mz (N m)] per task (one row per phase;
+backflip phases 0-4 = Stand, Crouch, Jump, Air, Land). Comparison only."""
+
+
+@dataclass(frozen=True)
+class BoundRule:
+    """The eta0 rule: a margin times a percentile of |w| per phase and axis, with a floor."""
+
+    name: str = "percentile_margin"  # rule identifier stored in the artifact
+    percentile: float = 95.0  # percentile of |w_axis| over the frames of a phase [%]
+    margin: float = 1.5  # multiplier on the percentile [-]
+    floor_force_n: float = 5.0  # least eta0 of a force axis [N]
+    floor_torque_nm: float = 2.0  # least eta0 of a torque axis [N m]
+    novice_alpha: float = 0.5  # torque-limit fraction of the novice model the rule reads [-]
+
+    def to_dict(self) -> dict:
+        """JSON-ready parameters."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> BoundRule:
+        """Inverse of :meth:`to_dict`."""
+        return cls(**values)
+
+
+def eta0_per_phase(
+    wrench_w: np.ndarray, phase: np.ndarray, num_phases: int, rule: BoundRule = BoundRule()
+) -> np.ndarray:
+    """Initial bound (num_phases, 6) [N, N m] from a wrench profile (T, 6) and phase ids (T,)."""
+    wrench_w = np.asarray(wrench_w, dtype=float)
+    phase = np.asarray(phase)
+    if wrench_w.ndim != 2 or wrench_w.shape[1] != 6:
+        raise ValueError(f"wrench_w must have shape (T, 6), got {wrench_w.shape}.")
+    if phase.shape != (wrench_w.shape[0],):
+        raise ValueError(f"phase must have shape ({wrench_w.shape[0]},), got {phase.shape}.")
+    if rule.name != "percentile_margin":
+        raise ValueError(f"Unknown bound rule '{rule.name}'; known: 'percentile_margin'.")
+    if not 0.0 <= rule.percentile <= 100.0:
+        raise ValueError(f"BoundRule.percentile must lie in [0, 100], got {rule.percentile}.")
+    floor = np.array([rule.floor_force_n] * 3 + [rule.floor_torque_nm] * 3)
+    eta0 = np.tile(floor, (num_phases, 1))
+    for p in range(num_phases):
+        rows = np.abs(wrench_w[phase == p])
+        if rows.shape[0]:
+            eta0[p] = np.maximum(floor, rule.margin * np.percentile(rows, rule.percentile, axis=0))
+    return eta0
+
+
+def envelope_per_phase(
+    wrench_w: np.ndarray, phase: np.ndarray, num_phases: int, percentile: float = 95.0
+) -> dict[str, np.ndarray]:
+    """Per phase and axis: max, percentile and mean of |w| (each (num_phases, 6)), NaN if empty."""
+    absw = np.abs(np.asarray(wrench_w, dtype=float))
+    out = {k: np.full((num_phases, 6), np.nan) for k in ("max", f"p{percentile:g}", "mean")}
+    for p in range(num_phases):
+        rows = absw[np.asarray(phase) == p]
+        if rows.shape[0]:
+            out["max"][p] = rows.max(axis=0)
+            out[f"p{percentile:g}"][p] = np.percentile(rows, percentile, axis=0)
+            out["mean"][p] = rows.mean(axis=0)
+    return out

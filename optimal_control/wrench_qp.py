@@ -1,0 +1,402 @@
+"""The assistive-wrench oracle: a contact-consistent inverse-dynamics QP per frame (proxsuite).
+
+Given q, v, a (Pinocchio layout) and which soles touch the ground, find the least assistive pelvis
+wrench ``w`` with which the G1 follows the motion::
+
+    min   w^T W w + eps_f |f|^2 + eps_t |tau|^2
+    s.t.  ID(q, v, a) = S^T tau + sum_soles J_sole^T G f_sole + J_w^T w      (35 rows, exact)
+          f corner forces of a sole in contact: world-z normal >= f_min, |f_x|, |f_y| <= mu f_z
+          f of a sole not in contact = 0
+          |tau| <= alpha * robots.g1.EFFORT_LIMIT_NM
+
+``ID(q, v, a) = M(q) a + h(q, v)`` (Pinocchio RNEA, plus the rotor armature of :mod:`robots.g1` on
+the joint rows so the oracle matches the simulated robot). Each sole carries four corner forces (the
+corners of the sole rectangle, :func:`robots.g1.sole_corners_m`), expressed in world axes. A friction
+pyramid per corner makes each sole wrench unilateral, inside the (linearised) friction cone and
+with its centre of pressure inside the sole rectangle, with no extra constraint. The ground is
+flat with a world-vertical normal.
+
+**The wrench frame.** ``w = [f_w (3) [N], m_w (3) [Nm]]`` is a world-frame force and a world-frame
+torque about the *centre of mass of the pelvis body*. That is exactly what MuJoCo's
+``data.xfrc_applied[pelvis_body_id]`` expects (world axes, applied at ``xipos``), so
+:func:`xfrc_applied_from_pelvis_wrench` is the identity, kept as a named function so every consumer
+makes the conversion explicit. In Pinocchio it enters through the Jacobian ``J_w`` of a point at the
+pelvis CoM with LOCAL_WORLD_ALIGNED axes (:func:`pelvis_wrench_jacobian`).
+
+**Torque limits too tight.** ``w`` acts on the pelvis only, so it cannot hold a limb whose joints
+are passive: with ``alpha = 0`` (or too small an alpha) the QP is infeasible, proxsuite says so and
+the frame is reported with ``solved = False`` and a large residual. The *upper* envelope of help is
+therefore not alpha = 0 but the no-contact wrench (both soles off, alpha = 1): the pelvis wrench that
+replaces the ground altogether.
+
+**Feasible without help.** ``w`` is unbounded, so the QP is always feasible; contacts and torque
+limits are hard. A frame is *unaided* when ``|w|_2 <= unaided_tol`` (default 0.5, N and Nm mixed as
+in W = identity): the regularisation and solver tolerance leave ``|w|`` of order 1e-3 on motions
+the robot can do alone, and half a newton is far below anything a learner would notice.
+
+Consecutive frames are warm-started (proxsuite ``update`` + ``solve`` with the previous primal-dual
+solution); the problem size is fixed (59 variables: 2 x 12 corner forces, 6 wrench, 29 torques).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from optimal_control.reference import NV, Reference
+from robots import g1
+from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
+
+NUM_SOLES = len(g1.SOLE_FRAMES)
+CORNERS_PER_SOLE = 4
+NF = NUM_SOLES * CORNERS_PER_SOLE * 3
+"""Number of contact-force variables (24)."""
+NW = 6
+NT = g1.NUM_JOINTS
+NX = NF + NW + NT
+"""Number of QP variables (59)."""
+SLICE_F = slice(0, NF)
+SLICE_W = slice(NF, NF + NW)
+SLICE_TAU = slice(NF + NW, NX)
+_INF = 1e20  # proxsuite treats |bound| >= 1e20 as infinite
+
+
+@dataclass(frozen=True)
+class WrenchQPConfig:
+    """Options of the per-frame wrench QP."""
+
+    alpha: float = 1.0  # fraction of robots.g1.EFFORT_LIMIT_NM the joints may use [-]
+    friction_coefficient: float = 0.7  # pyramid slope |f_t| <= mu f_n per corner, per axis [-]
+    min_normal_force_n: float = 0.0  # least normal force of each corner of a contact sole [N]
+    force_weight: float = 1.0  # weight of |w_force|^2 in the cost [1/N^2]
+    torque_weight: float = 1.0  # weight of |w_torque|^2 in the cost [1/(N m)^2]
+    contact_force_reg: float = 1e-4  # eps_f, weight of |f|^2 [1/N^2]
+    joint_torque_reg: float = 1e-4  # eps_t, weight of |tau|^2 [1/(N m)^2]
+    unaided_tol: float = 0.5  # |w|_2 at or below which a frame needs no help [N, N m]
+    include_armature: bool = True  # add rotor armature (robots.g1.ARMATURE) to the joint rows [-]
+    eps_abs: float = 1e-8  # proxsuite absolute tolerance [-]
+    max_iter: int = 1000  # proxsuite iteration cap [-]
+    warm_start: bool = True  # start each frame from the previous solution [-]
+
+
+@dataclass
+class FrameSolution:
+    """Result of one frame of the wrench QP."""
+
+    wrench_w: np.ndarray  # (6,) pelvis wrench [f_w N, m_w N m] at the pelvis CoM, world axes
+    contact_wrench_w: np.ndarray  # (2, 6) sole wrenches [N, N m] about each sole origin, world axes
+    corner_forces_w: np.ndarray  # (2, 4, 3) corner forces [N], world axes
+    tau_nm: np.ndarray  # (29,) joint torques [N m]
+    residual: float  # max |dynamics row residual| [N or N m]
+    solved: bool  # proxsuite converged (False: e.g. alpha too small to hold the limbs at all)
+    unaided: bool  # |w| <= unaided_tol: the robot does this frame without help
+    iterations: int  # proxsuite iterations
+    status: str  # proxsuite status name
+    solve_time_s: float  # model terms + QP time [s]
+
+
+@dataclass
+class WrenchProfile:
+    """The wrench QP solved along a reference (arrays of T frames)."""
+
+    alpha: float  # torque-limit fraction used
+    wrench_w: np.ndarray  # (T, 6) pelvis wrench [N, N m], world axes at the pelvis CoM
+    contact_wrench_w: np.ndarray  # (T, 2, 6) sole wrenches [N, N m], world axes, sole origins
+    corner_forces_w: np.ndarray  # (T, 2, 4, 3) corner forces [N]
+    tau_nm: np.ndarray  # (T, 29) joint torques [N m]
+    residual: np.ndarray  # (T,) dynamics residual [N or N m]
+    solved: np.ndarray  # (T,) bool, the QP converged
+    unaided: np.ndarray  # (T,) bool
+    iterations: np.ndarray  # (T,) int
+    solve_time_s: np.ndarray  # (T,) [s]
+    status: list[str] = field(default_factory=list)  # (T,) proxsuite status names
+
+    @property
+    def wrench_norm(self) -> np.ndarray:
+        """(T,) Euclidean norm of the pelvis wrench [N, N m mixed]."""
+        return np.linalg.norm(self.wrench_w, axis=1)
+
+    def stats(self) -> dict:
+        """Solver statistics: time per frame, iterations, residual, unaided fraction."""
+        return {
+            "alpha": self.alpha,
+            "frames": int(self.wrench_w.shape[0]),
+            "mean_time_ms": float(1e3 * self.solve_time_s.mean()),
+            "max_time_ms": float(1e3 * self.solve_time_s.max()),
+            "mean_iterations": float(self.iterations.mean()),
+            "max_residual": float(self.residual.max()),
+            "solved_fraction": float(self.solved.mean()),
+            "unaided_fraction": float(self.unaided.mean()),
+            "max_wrench_norm": float(self.wrench_norm.max()),
+            "statuses": sorted(set(self.status)),
+        }
+
+    def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        """Arrays for an npz file, keys prefixed (e.g. ``alpha_0.50_``)."""
+        return {
+            f"{prefix}wrench_w": self.wrench_w,
+            f"{prefix}contact_wrench_w": self.contact_wrench_w,
+            f"{prefix}corner_forces_w": self.corner_forces_w,
+            f"{prefix}tau_nm": self.tau_nm,
+            f"{prefix}residual": self.residual,
+            f"{prefix}solved": self.solved,
+            f"{prefix}unaided": self.unaided,
+            f"{prefix}iterations": self.iterations,
+            f"{prefix}solve_time_s": self.solve_time_s,
+        }
+
+
+def _skew(r: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def pelvis_com_offset_m(robot: G1Pinocchio) -> np.ndarray:
+    """Centre of mass of the pelvis body in the pelvis frame [m], shape (3,)."""
+    return np.asarray(robot.model.inertias[1].lever, dtype=float).copy()
+
+
+def pelvis_wrench_jacobian(robot: G1Pinocchio, data: pin.Data) -> np.ndarray:
+    """Jacobian (6, 35) of the pelvis CoM point with world axes: tau_gen = J^T w.
+
+    Needs ``pin.computeJointJacobians`` (which also runs forward kinematics) on ``data`` first. Rows
+    0:3 map v to the world velocity of the pelvis CoM, rows 3:6 to the world angular velocity.
+    """
+    jac = pin.getJointJacobian(robot.model, data, 1, pin.LOCAL_WORLD_ALIGNED)
+    r_w = data.oMi[1].rotation @ pelvis_com_offset_m(robot)
+    out = jac.copy()
+    out[:3] -= _skew(r_w) @ jac[3:]  # v_com = v_origin + omega x r = v_origin - [r]x omega
+    return out
+
+
+def generalized_force_of_pelvis_wrench(
+    robot: G1Pinocchio, q: np.ndarray, wrench_w: np.ndarray
+) -> np.ndarray:
+    """Generalized force (35,) in Pinocchio's v-coordinates of a pelvis wrench (6,) [N, N m]."""
+    data = robot.data()
+    pin.computeJointJacobians(robot.model, data, q)
+    return pelvis_wrench_jacobian(robot, data).T @ np.asarray(wrench_w, dtype=float)
+
+
+def xfrc_applied_from_pelvis_wrench(wrench_w: np.ndarray) -> np.ndarray:
+    """MuJoCo ``xfrc_applied`` row(s) (..., 6) of the pelvis for oracle wrench(es) (..., 6).
+
+    The oracle's wrench is already MuJoCo's convention (world force, world torque about the body's
+    CoM), so this is a copy; keep calling it so the convention stays explicit at every use.
+    """
+    return np.array(wrench_w, dtype=float, copy=True)
+
+
+def pelvis_wrench_from_xfrc_applied(xfrc: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`xfrc_applied_from_pelvis_wrench`."""
+    return np.array(xfrc, dtype=float, copy=True)
+
+
+class WrenchQP:
+    """The per-frame wrench QP with warm start. Reuse one instance along a trajectory.
+
+    Example::
+
+        qp = WrenchQP(WrenchQPConfig(alpha=0.5))
+        sol = qp.solve(q, v, a, contacts=(True, True))
+        sol.wrench_w  # (6,) pelvis wrench for MuJoCo xfrc_applied
+    """
+
+    def __init__(self, cfg: WrenchQPConfig = WrenchQPConfig(), robot: G1Pinocchio | None = None):
+        if cfg.alpha < 0:
+            raise ValueError(f"WrenchQPConfig.alpha must be >= 0, got {cfg.alpha}.")
+        if cfg.friction_coefficient < 0:
+            raise ValueError(
+                f"WrenchQPConfig.friction_coefficient must be >= 0, got {cfg.friction_coefficient}."
+            )
+        self.cfg = cfg
+        self.robot = robot or build_pinocchio_model()
+        self.data = self.robot.data()
+        self._sole_ids = [self.robot.frame_ids[name] for name in g1.SOLE_FRAMES]
+        self._corners_m = g1.sole_corners_m()
+        self._joint_v = self.robot.joint_v_index
+        self._armature = g1.ARMATURE if cfg.include_armature else np.zeros(g1.NUM_JOINTS)
+        self._hessian = self._build_hessian()
+        self._friction_rows = self._build_friction_rows()
+        self._selection_t = np.zeros((NV, NT))
+        self._selection_t[self._joint_v, np.arange(NT)] = 1.0
+        self._qp: proxsuite.proxqp.dense.QP | None = None
+
+    def _build_hessian(self) -> np.ndarray:
+        c = self.cfg
+        diag = np.concatenate(
+            [
+                np.full(NF, c.contact_force_reg),
+                np.full(3, c.force_weight),
+                np.full(3, c.torque_weight),
+                np.full(NT, c.joint_torque_reg),
+            ]
+        )
+        return 2.0 * np.diag(diag)
+
+    def _build_friction_rows(self) -> np.ndarray:
+        mu = self.cfg.friction_coefficient
+        rows = []
+        for corner in range(NUM_SOLES * CORNERS_PER_SOLE):
+            base = 3 * corner
+            for axis in (0, 1):
+                for sign in (1.0, -1.0):
+                    row = np.zeros(NX)
+                    row[base + axis] = sign
+                    row[base + 2] = -mu
+                    rows.append(row)
+        return np.array(rows)  # (32, NX): sign * f_t - mu f_n <= 0
+
+    def reset(self) -> None:
+        """Forget the warm start (the next solve initialises the QP afresh)."""
+        self._qp = None
+
+    def torque_bounds_nm(self, alpha: float | None = None) -> np.ndarray:
+        """Joint torque bound (29,) [N m] for ``alpha`` (default: the config's)."""
+        alpha = self.cfg.alpha if alpha is None else alpha
+        return alpha * g1.EFFORT_LIMIT_NM
+
+    def model_terms(
+        self, q: np.ndarray, v: np.ndarray, a: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """Equality matrix A (35, 59), right side b (35,) and sole corner offsets (world, 2x(4,3))."""
+        model, data = self.robot.model, self.data
+        b = pin.rnea(model, data, q, v, a).copy()
+        b[self._joint_v] += self._armature * a[self._joint_v]
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        eq = np.empty((NV, NX))
+        offsets = []
+        for s, fid in enumerate(self._sole_ids):
+            jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+            r_w = self._corners_m @ data.oMf[fid].rotation.T  # (4, 3) corner offsets, world axes
+            offsets.append(r_w)
+            jac_lin_t, jac_ang_t = jac[:3].T, jac[3:].T  # (35, 3)
+            for k in range(CORNERS_PER_SOLE):
+                col = 3 * (s * CORNERS_PER_SOLE + k)
+                # Force f at origin + r: generalized force J_lin^T f + J_ang^T (r x f).
+                eq[:, col : col + 3] = jac_lin_t + jac_ang_t @ _skew(r_w[k])
+        eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data).T
+        eq[:, SLICE_TAU] = self._selection_t
+        return eq, b, offsets
+
+    def _box(self, contacts: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+        lower = np.full(NX, -_INF)
+        upper = np.full(NX, _INF)
+        for s in range(NUM_SOLES):
+            sl = slice(3 * CORNERS_PER_SOLE * s, 3 * CORNERS_PER_SOLE * (s + 1))
+            if contacts[s]:
+                lower[sl][2::3] = self.cfg.min_normal_force_n
+            else:
+                lower[sl] = 0.0
+                upper[sl] = 0.0
+        tau_max = self.torque_bounds_nm(alpha)
+        lower[SLICE_TAU] = -tau_max
+        upper[SLICE_TAU] = tau_max
+        return lower, upper
+
+    def _cold_solve(self, eq, b, l_box, u_box) -> proxsuite.proxqp.dense.QP:
+        n_in = self._friction_rows.shape[0]
+        qp = proxsuite.proxqp.dense.QP(NX, NV, n_in, box_constraints=True)
+        qp.settings.eps_abs = self.cfg.eps_abs
+        qp.settings.eps_rel = 0.0
+        qp.settings.max_iter = self.cfg.max_iter
+        qp.settings.verbose = False
+        qp.init(
+            self._hessian,
+            np.zeros(NX),
+            eq,
+            b,
+            self._friction_rows,
+            np.full(n_in, -_INF),
+            np.zeros(n_in),
+            l_box,
+            u_box,
+        )
+        qp.solve()
+        # Only now is there a previous result: warm-starting a QP that never solved segfaults.
+        qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        self._qp = qp
+        return qp
+
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        a: np.ndarray,
+        contacts: tuple[bool, bool] | np.ndarray,
+        alpha: float | None = None,
+    ) -> FrameSolution:
+        """Solve one frame. ``contacts`` is (left, right); ``alpha`` overrides the config's."""
+        start = time.perf_counter()
+        alpha = self.cfg.alpha if alpha is None else float(alpha)
+        contacts = np.asarray(contacts, dtype=bool)
+        eq, b, offsets = self.model_terms(q, v, a)
+        l_box, u_box = self._box(contacts, alpha)
+        qp = None
+        if self._qp is not None and self.cfg.warm_start:
+            qp = self._qp
+            qp.update(A=eq, b=b, l_box=l_box, u_box=u_box, update_preconditioner=False)
+            qp.solve()
+            if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+                qp = None  # a warm start can stall on a contact switch: retry from scratch
+        if qp is None:
+            qp = self._cold_solve(eq, b, l_box, u_box)
+        x = qp.results.x
+        residual = float(np.max(np.abs(eq @ x - b)))
+        corner = x[SLICE_F].reshape(NUM_SOLES, CORNERS_PER_SOLE, 3)
+        contact_wrench = np.zeros((NUM_SOLES, 6))
+        for s in range(NUM_SOLES):
+            contact_wrench[s, :3] = corner[s].sum(axis=0)
+            contact_wrench[s, 3:] = np.cross(offsets[s], corner[s]).sum(axis=0)
+        wrench = x[SLICE_W].copy()
+        status = str(qp.results.info.status).split(".")[-1]
+        solved = status == "PROXQP_SOLVED"
+        return FrameSolution(
+            wrench_w=wrench,
+            contact_wrench_w=contact_wrench,
+            corner_forces_w=corner.copy(),
+            tau_nm=x[SLICE_TAU].copy(),
+            residual=residual,
+            solved=solved,
+            unaided=solved and bool(np.linalg.norm(wrench) <= self.cfg.unaided_tol),
+            iterations=int(qp.results.info.iter),
+            status=status,
+            solve_time_s=time.perf_counter() - start,
+        )
+
+    def solve_reference(
+        self, ref: Reference, alpha: float | None = None, progress: bool = False
+    ) -> WrenchProfile:
+        """Solve every frame of ``ref`` in order, warm-starting each from the previous one."""
+        alpha = self.cfg.alpha if alpha is None else float(alpha)
+        self.reset()
+        frames = range(ref.num_frames)
+        if progress:
+            from tqdm import tqdm
+
+            frames = tqdm(frames, desc=f"wrench QP {ref.name} alpha={alpha:g}", unit="frame")
+        sols = [self.solve(ref.q[t], ref.v[t], ref.a[t], ref.contacts[t], alpha) for t in frames]
+        return WrenchProfile(
+            alpha=alpha,
+            wrench_w=np.array([s.wrench_w for s in sols]),
+            contact_wrench_w=np.array([s.contact_wrench_w for s in sols]),
+            corner_forces_w=np.array([s.corner_forces_w for s in sols]),
+            tau_nm=np.array([s.tau_nm for s in sols]),
+            residual=np.array([s.residual for s in sols]),
+            solved=np.array([s.solved for s in sols]),
+            unaided=np.array([s.unaided for s in sols]),
+            iterations=np.array([s.iterations for s in sols]),
+            solve_time_s=np.array([s.solve_time_s for s in sols]),
+            status=[s.status for s in sols],
+        )
+
+
+def solve_reference(
+    ref: Reference, cfg: WrenchQPConfig = WrenchQPConfig(), progress: bool = False
+) -> WrenchProfile:
+    """Convenience: the wrench profile of ``ref`` with a fresh :class:`WrenchQP`."""
+    return WrenchQP(cfg).solve_reference(ref, progress=progress)

@@ -1,0 +1,100 @@
+"""Bounds rule and the OracleArtifact: derivation, round trip, validation on load."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from optimal_control.artifact import ArtifactError, OracleArtifact, build_artifact
+from optimal_control.bounds import BoundRule, eta0_per_phase
+from optimal_control.reference import Reference, ReferenceError, static_reference
+from optimal_control.wrench_qp import WrenchQP, WrenchQPConfig
+
+
+def test_eta0_rule_percentile_margin_and_floor():
+    phase = np.array([0] * 100 + [1] * 100)
+    wrench = np.zeros((200, 6))
+    wrench[:100, 1] = np.linspace(-20.0, 20.0, 100)  # phase 0 needs lateral force
+    wrench[100:, 2] = 50.0  # phase 1 needs vertical force
+    rule = BoundRule(percentile=100.0, margin=2.0, floor_force_n=5.0, floor_torque_nm=1.0)
+    eta0 = eta0_per_phase(wrench, phase, 3, rule)
+    np.testing.assert_allclose(eta0[0], [5.0, 40.0, 5.0, 1.0, 1.0, 1.0])
+    np.testing.assert_allclose(eta0[1], [5.0, 5.0, 100.0, 1.0, 1.0, 1.0])
+    np.testing.assert_allclose(eta0[2], [5.0, 5.0, 5.0, 1.0, 1.0, 1.0])  # empty phase: floor
+    with pytest.raises(ValueError, match="Unknown bound rule"):
+        eta0_per_phase(wrench, phase, 2, BoundRule(name="nope"))
+
+
+def _small_artifact(g1_pin) -> OracleArtifact:
+    ref = static_reference(g1_pin.q_stand, 8, 0.02, name="tiny")
+    ref.phase = np.array([0, 0, 0, 1, 1, 1, 2, 2])
+    ref.phase_names = ("a", "b", "c")
+    ref.contacts[3:6] = False  # phase "b" airborne
+    ref.extras = {"marker": np.arange(8.0)}
+    ref.validate()
+    profiles = {
+        alpha: WrenchQP(WrenchQPConfig(alpha=alpha)).solve_reference(ref) for alpha in (1.0, 0.5)
+    }
+    return build_artifact(
+        "tiny",
+        ref,
+        profiles,
+        BoundRule(novice_alpha=0.5),
+        extra_summary={"note": "test"},
+        extra_arrays={"table": np.ones((2, 3))},
+    )
+
+
+def test_artifact_round_trip(tmp_path, g1_pin):
+    art = _small_artifact(g1_pin)
+    weight = g1_pin.total_mass_kg * 9.81
+    # Phase "b" (no contact) needs the weight; the others need only the floor.
+    assert art.eta0[1, 2] >= weight
+    assert art.eta0[0, 2] == BoundRule().floor_force_n
+    folder = art.save(tmp_path / "art")
+    assert (folder / "plots" / "eta0.png").is_file()
+    assert (folder / "plots" / "wrench_0.50.png").is_file()
+    loaded = OracleArtifact.load(folder)
+    assert loaded.phase_names == ("a", "b", "c")
+    np.testing.assert_allclose(loaded.eta0, art.eta0)
+    np.testing.assert_allclose(loaded.profiles[0.5].wrench_w, art.profiles[0.5].wrench_w)
+    np.testing.assert_allclose(loaded.reference.q, art.reference.q)
+    np.testing.assert_allclose(loaded.reference.extras["marker"], np.arange(8.0))
+    np.testing.assert_allclose(loaded.extra_arrays["table"], np.ones((2, 3)))
+    assert loaded.extra_summary == {"note": "test"}
+    summary = json.loads((folder / "oracle.json").read_text())
+    assert summary["eta0_per_phase"]["b"]["force_n"][2] == pytest.approx(art.eta0[1, 2])
+    assert summary["alphas"] == [1.0, 0.5]
+    assert summary["rule"]["name"] == "percentile_margin"
+
+
+def test_artifact_load_rejects_bad_folders(tmp_path, g1_pin):
+    with pytest.raises(ArtifactError, match=r"oracle\.json is missing"):
+        OracleArtifact.load(tmp_path)
+    folder = _small_artifact(g1_pin).save(tmp_path / "art", plots=False)
+    summary = json.loads((folder / "oracle.json").read_text())
+    summary["version"] = 999
+    (folder / "oracle.json").write_text(json.dumps(summary))
+    with pytest.raises(ArtifactError, match="version 999"):
+        OracleArtifact.load(folder)
+    summary["version"] = 1
+    summary["eta0"] = [[1.0] * 6]  # one row for three phases
+    (folder / "oracle.json").write_text(json.dumps(summary))
+    with pytest.raises(ArtifactError, match="eta0 has shape"):
+        OracleArtifact.load(folder)
+
+
+def test_reference_validation_names_the_problem(g1_pin):
+    ref = static_reference(g1_pin.q_stand, 4, 0.02)
+    bad_quat = Reference(**{**ref.__dict__, "q": ref.q.copy()})
+    bad_quat.q[2, 3:7] *= 2.0
+    with pytest.raises(ReferenceError, match="quaternion of frame 2"):
+        bad_quat.validate()
+    bad_nan = Reference(**{**ref.__dict__, "v": ref.v.copy()})
+    bad_nan.v[3, 0] = np.nan
+    with pytest.raises(ReferenceError, match="'v' has NaN"):
+        bad_nan.validate()
+    with pytest.raises(ReferenceError, match="shape"):
+        Reference(**{**ref.__dict__, "a": ref.a[:, :30]}).validate()
