@@ -1,0 +1,318 @@
+"""The A2CF assistive-force curriculum (paper Algorithm 1), one 6-D bound per task phase.
+
+Each training iteration ``k`` and each phase ``p`` the half-width ``eta[p]`` (force x, y, z [N], then
+moment x, y, z [Nm]) of the hypercube that bounds the assistive pelvis wrench is updated from the
+applied-wrench magnitude ``|F_k|`` measured over that iteration's rollout:
+
+    if   |F_k| < (1 - epsilon) |eta_k|:  eta_k <- (1 - delta) eta_k
+    elif |F_k| > (1 + epsilon) |eta_k|:  eta_k <- (1 + delta) eta_k
+    if isSkillLearned:                   eta_k <- (1 - delta) eta_k
+
+Definitions used here (the paper leaves them open; documented in docs/training.md):
+
+- ``|F_k|`` of a phase is the mean, over every (env, control step) of the iteration's rollout whose
+  env was in that phase, of the Euclidean norm of the 6-D applied wrench (``extras["assist"]
+  ["applied_wrench"]``, after the random mask and the bound; force [N] and moment [Nm] entries are
+  mixed in one norm exactly as the paper's ``|F|``). ``|eta_k|`` is the 6-D norm of the bound.
+- The force rule runs only for phases visited in the iteration (no sample, no measurement); the
+  skill-learned decay runs for every phase, so all bounds go to zero once the skill is learned.
+- ``isSkillLearned`` is ``skill_progress >= skill_learned_progress`` (1.0: the task's target),
+  where ``skill_progress`` is the iteration's mean of the env's ``extras["skill_progress"]``.
+- The less-assist reward is switched on (and stays on) the first iteration with
+  ``skill_progress >= less_assist_progress`` (0.8, the paper's 80 %).
+- Assistance is switched off (and stays off) the first iteration in which the applied wrench is
+  negligible: ``max`` over visited phases of ``|F_k|`` below ``negligible_force_n`` (paper: 0.1 N,
+  "insignificant for a 35 kg robot"), or every bound norm ``|eta[p]|`` below it (the applied
+  wrench can then never exceed it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import torch
+
+WRENCH_AXES: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
+"""Names of the six wrench components: world-frame force [N] then moment [Nm] at the pelvis."""
+
+# Paper Table "Initial Distribution of Spatial Force": force bound [N] then moment bound [Nm],
+# one row per task phase. "stand" (stand and balance under pushes) uses the walking row.
+PAPER_INITIAL_BOUNDS: dict[str, tuple[tuple[float, ...], ...]] = {
+    "walk": ((40.0, 40.0, 10.0, 40.0, 40.0, 40.0),),
+    "stand": ((40.0, 40.0, 10.0, 40.0, 40.0, 40.0),),
+    "backflip": (
+        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
+        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
+        (40.0, 40.0, 100.0, 30.0, 30.0, 30.0),
+        (40.0, 40.0, 100.0, 30.0, 30.0, 30.0),
+        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
+    ),
+    "dance": ((40.0, 40.0, 40.0, 40.0, 40.0, 40.0),),
+}
+
+
+@dataclass(frozen=True)
+class CurriculumConfig:
+    """Hyper-parameters of the assistive-force curriculum (paper Sec. III-B, Alg. 1)."""
+
+    epsilon: float = 0.5  # tolerance band on |F|/|eta| before the bound moves [-]
+    delta: float = 0.2  # relative bound change per update [-]
+    negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
+    less_assist_progress: float = 0.8  # skill progress that switches on the less-assist reward [-]
+    skill_learned_progress: float = 1.0  # skill progress at which the skill counts as learned [-]
+
+    def __post_init__(self) -> None:
+        """Reject values for which Algorithm 1 is meaningless."""
+        if not 0.0 <= self.epsilon < 1.0:
+            raise ValueError(f"curriculum epsilon must be in [0, 1), got {self.epsilon}")
+        if not 0.0 < self.delta < 1.0:
+            raise ValueError(f"curriculum delta must be in (0, 1), got {self.delta}")
+        if self.negligible_force_n < 0.0:
+            raise ValueError(
+                f"curriculum negligible_force_n must be >= 0 N, got {self.negligible_force_n}"
+            )
+
+
+def update_bound(
+    eta: torch.Tensor,
+    applied_norm: torch.Tensor,
+    visited: torch.Tensor,
+    skill_learned: bool,
+    epsilon: float,
+    delta: float,
+) -> torch.Tensor:
+    """One step of Algorithm 1 for every phase at once (pure function).
+
+    Args:
+        eta: (P, 6) current bounds (force [N], moment [Nm]).
+        applied_norm: (P,) mean applied-wrench norm ``|F_k|`` per phase.
+        visited: (P,) bool, phases with at least one sample this iteration (others keep their
+            bound under the force rule).
+        skill_learned: the task's skill is learned: an extra ``(1 - delta)`` decay on every phase.
+        epsilon: tolerance band of the force rule.
+        delta: relative change per step.
+
+    Returns:
+        (P, 6) the new bounds.
+    """
+    eta_norm = torch.linalg.vector_norm(eta, dim=-1)
+    shrink = visited & (applied_norm < (1.0 - epsilon) * eta_norm)
+    grow = visited & ~shrink & (applied_norm > (1.0 + epsilon) * eta_norm)
+    scale = torch.ones_like(eta_norm)
+    scale = torch.where(shrink, scale * (1.0 - delta), scale)
+    scale = torch.where(grow, scale * (1.0 + delta), scale)
+    if skill_learned:
+        scale = scale * (1.0 - delta)
+    return eta * scale.unsqueeze(-1)
+
+
+def identical_axis_bounds(eta0: torch.Tensor) -> torch.Tensor:
+    """The "w/o ID" ablation: per phase, the same bound on x, y, z (mean of the three), for the
+    force and, separately, for the moment.
+
+    Args:
+        eta0: (P, 6) per-axis initial bounds.
+
+    Returns:
+        (P, 6) bounds with ``[f, f, f, m, m, m]`` per phase.
+    """
+    force = eta0[:, :3].mean(dim=-1, keepdim=True).expand(-1, 3)
+    moment = eta0[:, 3:].mean(dim=-1, keepdim=True).expand(-1, 3)
+    return torch.cat([force, moment], dim=-1).clone()
+
+
+def paper_initial_bounds(task_name: str, num_phases: int) -> torch.Tensor:
+    """The paper's hand-set initial bounds for a task, shape (num_phases, 6).
+
+    A single-row table entry is repeated over the task's phases. The oracle artifact
+    (``--warmstart``) is the other source of ``eta0``; it will pass its own tensor instead.
+    """
+    if task_name not in PAPER_INITIAL_BOUNDS:
+        raise ValueError(
+            f"no initial assist bound is known for task '{task_name}': add a row to "
+            f"rl.curriculum.PAPER_INITIAL_BOUNDS (known: {sorted(PAPER_INITIAL_BOUNDS)}) or take "
+            "eta0 from an oracle artifact"
+        )
+    rows = torch.tensor(PAPER_INITIAL_BOUNDS[task_name], dtype=torch.float32)
+    if rows.shape[0] == 1:
+        return rows.expand(num_phases, 6).clone()
+    if rows.shape[0] != num_phases:
+        raise ValueError(
+            f"task '{task_name}' has {num_phases} phases but the paper table has {rows.shape[0]} "
+            "rows of initial bounds"
+        )
+    return rows
+
+
+@dataclass(frozen=True)
+class CurriculumUpdate:
+    """What one curriculum step decided (for the caller to apply to the env and to log)."""
+
+    iteration: int  # training iteration the measurement came from [-]
+    eta: list[list[float]]  # (P, 6) bounds after the update [N, Nm]
+    applied_norm: list[float]  # (P,) measured mean applied-wrench norm [N, Nm mixed]
+    visited: list[bool]  # (P,) phases that had samples [-]
+    skill_progress: float  # measured skill progress [-]
+    skill_learned: bool  # extra decay applied [-]
+    assist_enabled: bool  # assistance still on after this step [-]
+    less_assist_reward: bool  # less-assist reward on after this step [-]
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (one line of the curriculum log)."""
+        return asdict(self)
+
+
+class AssistCurriculum:
+    """Per-phase hypercube bounds updated by Algorithm 1, plus the two switches of the method.
+
+    The object is pure bookkeeping: it never touches the environment. The runner reads
+    :attr:`eta`, :attr:`assist_enabled` and :attr:`less_assist_reward` after :meth:`update` and
+    calls the env setters. Its :meth:`state_dict` goes into every checkpoint.
+    """
+
+    def __init__(self, eta0: torch.Tensor, cfg: CurriculumConfig = CurriculumConfig()) -> None:
+        """Start from the initial bounds ``eta0`` (num_phases, 6), all finite and >= 0."""
+        eta0 = torch.as_tensor(eta0, dtype=torch.float32)
+        if eta0.ndim != 2 or eta0.shape[1] != 6:
+            raise ValueError(
+                f"initial assist bound eta0 must have shape (num_phases, 6), got {tuple(eta0.shape)}"
+            )
+        if not torch.isfinite(eta0).all() or (eta0 < 0).any():
+            raise ValueError(f"initial assist bound eta0 must be finite and >= 0, got {eta0}")
+        self.cfg = cfg
+        self.eta0 = eta0.clone()
+        self.eta = eta0.clone()
+        self.assist_enabled = True
+        self.less_assist_reward = False
+        self.num_updates = 0
+
+    @property
+    def num_phases(self) -> int:
+        """Number of task phases (rows of :attr:`eta`)."""
+        return int(self.eta.shape[0])
+
+    def update(
+        self,
+        iteration: int,
+        applied_norm: torch.Tensor,
+        visited: torch.Tensor,
+        skill_progress: float,
+    ) -> CurriculumUpdate:
+        """Apply Algorithm 1 and the two switches after one training iteration.
+
+        Args:
+            iteration: index of the iteration the rollout belongs to.
+            applied_norm: (P,) mean applied-wrench norm per phase over the rollout.
+            visited: (P,) bool, phases with samples in the rollout.
+            skill_progress: the task's skill measure (>= 1 learned, >= 0.8 less-assist reward).
+        """
+        applied_norm = torch.as_tensor(applied_norm, dtype=torch.float32).reshape(-1)
+        visited = torch.as_tensor(visited, dtype=torch.bool).reshape(-1)
+        if applied_norm.shape[0] != self.num_phases or visited.shape[0] != self.num_phases:
+            raise ValueError(
+                f"curriculum has {self.num_phases} phases but got applied_norm "
+                f"{tuple(applied_norm.shape)} and visited {tuple(visited.shape)}"
+            )
+        if not torch.isfinite(applied_norm).all():
+            raise ValueError(f"applied wrench norm is not finite: {applied_norm}")
+        skill_learned = skill_progress >= self.cfg.skill_learned_progress
+        if self.assist_enabled:
+            self.eta = update_bound(
+                self.eta, applied_norm, visited, skill_learned, self.cfg.epsilon, self.cfg.delta
+            )
+            if skill_progress >= self.cfg.less_assist_progress:
+                self.less_assist_reward = True
+            threshold = self.cfg.negligible_force_n
+            force_negligible = (
+                bool(visited.any()) and float(applied_norm[visited].max()) < threshold
+            )
+            bound_negligible = float(torch.linalg.vector_norm(self.eta, dim=-1).max()) < threshold
+            if force_negligible or bound_negligible:
+                self.assist_enabled = False
+                self.less_assist_reward = False  # no assist, no assist penalty
+        self.num_updates += 1
+        return CurriculumUpdate(
+            iteration=iteration,
+            eta=self.eta.tolist(),
+            applied_norm=applied_norm.tolist(),
+            visited=visited.tolist(),
+            skill_progress=float(skill_progress),
+            skill_learned=bool(skill_learned),
+            assist_enabled=self.assist_enabled,
+            less_assist_reward=self.less_assist_reward,
+        )
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue the curriculum after a resume."""
+        return {
+            "eta0": self.eta0.clone(),
+            "eta": self.eta.clone(),
+            "assist_enabled": self.assist_enabled,
+            "less_assist_reward": self.less_assist_reward,
+            "num_updates": self.num_updates,
+            "cfg": asdict(self.cfg),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output (the config of this object is kept)."""
+        eta = torch.as_tensor(state["eta"], dtype=torch.float32)
+        if eta.shape != self.eta.shape:
+            raise ValueError(
+                f"checkpoint curriculum has bounds of shape {tuple(eta.shape)}, this task needs "
+                f"{tuple(self.eta.shape)}: was the checkpoint made for another task?"
+            )
+        self.eta0 = torch.as_tensor(state["eta0"], dtype=torch.float32).clone()
+        self.eta = eta.clone()
+        self.assist_enabled = bool(state["assist_enabled"])
+        self.less_assist_reward = bool(state["less_assist_reward"])
+        self.num_updates = int(state["num_updates"])
+
+
+class AssistStatistics:
+    """Accumulates, over one rollout, the applied-wrench norm per phase from ``extras["assist"]``.
+
+    Call :meth:`add` after every env step, :meth:`result` at the end of the rollout, then
+    :meth:`reset`.
+    """
+
+    def __init__(self, num_phases: int, device: torch.device | str = "cpu") -> None:
+        """Zeroed sums for ``num_phases`` phases."""
+        self.num_phases = num_phases
+        self.norm_sum = torch.zeros(num_phases, dtype=torch.float64, device=device)
+        self.count = torch.zeros(num_phases, dtype=torch.float64, device=device)
+        self.force_sum_n = 0.0
+        self.steps = 0
+
+    def add(self, assist: dict[str, torch.Tensor]) -> None:
+        """Add one step: ``assist["applied_wrench"]`` (N, 6) and ``assist["phase"]`` (N,) long."""
+        wrench = assist["applied_wrench"]
+        phase = assist["phase"].long().reshape(-1)
+        if wrench.ndim != 2 or wrench.shape[1] != 6 or wrench.shape[0] != phase.shape[0]:
+            raise ValueError(
+                f"extras['assist'] must hold applied_wrench (N, 6) and phase (N,), got "
+                f"{tuple(wrench.shape)} and {tuple(phase.shape)}"
+            )
+        norm = torch.linalg.vector_norm(wrench.double(), dim=-1).to(self.norm_sum.device)
+        phase = phase.to(self.norm_sum.device)
+        self.norm_sum.index_add_(0, phase, norm)
+        self.count.index_add_(0, phase, torch.ones_like(norm))
+        self.force_sum_n += float(torch.linalg.vector_norm(wrench[:, :3].double(), dim=-1).mean())
+        self.steps += 1
+
+    def result(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(applied_norm (P,), visited (P,) bool) over the steps added so far."""
+        visited = self.count > 0
+        mean = torch.where(visited, self.norm_sum / self.count.clamp(min=1.0), 0.0)
+        return mean.float().cpu(), visited.cpu()
+
+    def mean_force_n(self) -> float:
+        """Mean norm of the applied force part (3-D) over all env steps added [N]."""
+        return self.force_sum_n / max(self.steps, 1)
+
+    def reset(self) -> None:
+        """Zero the sums for the next rollout."""
+        self.norm_sum.zero_()
+        self.count.zero_()
+        self.force_sum_n = 0.0
+        self.steps = 0

@@ -1,0 +1,177 @@
+"""The joint-action actor, the VAE history encoder, the PPO extension and the ONNX export."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from rsl_rl.models import MLPModel
+from rsl_rl.storage import RolloutStorage
+from tensordict import TensorDict
+
+from rl.agents import A2CFPPO, MODES, A2CFActor, HistoryEncoder, get_mode
+from rl.export import OnnxMotionPolicy, export_motion_policy
+
+N, P, H, K, C = 8, 12, 3, 7, 25  # tiny sizes: envs, obs, history, privileged, critic
+GAUSSIAN = {"class_name": "GaussianDistribution", "init_std": 1.0}
+
+
+def make_obs(n: int = N, seed: int = 0) -> TensorDict:
+    g = torch.Generator().manual_seed(seed)
+    return TensorDict(
+        {
+            "policy": torch.randn(n, P, generator=g),
+            "history": torch.randn(n, H * P, generator=g),
+            "privileged": torch.randn(n, K, generator=g),
+            "critic": torch.randn(n, C, generator=g),
+            "base_lin_vel": torch.randn(n, 3, generator=g),
+            "policy_clean": torch.randn(n, P, generator=g),
+        },
+        batch_size=[n],
+    )
+
+
+def make_actor(output_dim: int = 35, privileged: bool = True) -> A2CFActor:
+    groups = ["policy", "history"] + (["privileged"] if privileged and output_dim == 35 else [])
+    return A2CFActor(
+        make_obs(),
+        {"actor": groups},
+        "actor",
+        output_dim,
+        latent_dim=4,
+        encoder_hidden_dims=(16,),
+        motion_hidden_dims=(16,),
+        assist_hidden_dims=(16,),
+        assist_privileged=privileged,
+        distribution_cfg=GAUSSIAN,
+    )
+
+
+def test_modes_table() -> None:
+    assert set(MODES) == {"baseline", "a2cf", "no-pi", "no-id", "no-rm"}
+    assert not get_mode("baseline").assist
+    assert get_mode("a2cf").assist_privileged and get_mode("a2cf").random_mask
+    assert not get_mode("no-pi").assist_privileged
+    assert get_mode("no-id").identical_initial_bounds
+    assert not get_mode("no-rm").random_mask
+    with pytest.raises(ValueError, match="unknown training mode"):
+        get_mode("a3cf")
+
+
+def test_actor_joint_action_shapes_and_distribution() -> None:
+    actor = make_actor()
+    obs = make_obs()
+    actions = actor(obs, stochastic_output=True)
+    assert actions.shape == (N, 35)
+    assert actor.get_output_log_prob(actions).shape == (N,)
+    assert actor.output_std.shape == (N, 35)
+    assert make_actor(output_dim=29)(obs).shape == (N, 29)
+
+
+def test_motion_head_ignores_privileged_info_assist_head_uses_it() -> None:
+    actor = make_actor()
+    obs, changed = make_obs(), make_obs()
+    changed["privileged"] = changed["privileged"] + 5.0
+    a, b = actor(obs), actor(changed)
+    torch.testing.assert_close(a[:, :29], b[:, :29])
+    assert (a[:, 29:] - b[:, 29:]).abs().max() > 1e-4
+    # no-pi: the assist head cannot see it either
+    no_pi = make_actor(privileged=False)
+    torch.testing.assert_close(no_pi(obs), no_pi(changed))
+
+
+def test_both_heads_read_the_history_latent() -> None:
+    actor = make_actor()
+    obs, changed = make_obs(), make_obs()
+    changed["history"] = changed["history"] + 1.0
+    a, b = actor(obs), actor(changed)
+    assert (a[:, :29] - b[:, :29]).abs().max() > 1e-4
+    assert (a[:, 29:] - b[:, 29:]).abs().max() > 1e-4
+
+
+def test_actor_rejects_wrong_groups_and_sizes() -> None:
+    with pytest.raises(ValueError, match="obs_groups"):
+        A2CFActor(make_obs(), {"actor": ["policy"]}, "actor", 35)
+    with pytest.raises(ValueError, match="output_dim"):
+        A2CFActor(make_obs(), {"actor": ["policy", "history"]}, "actor", 30)
+
+
+def test_ppo_gradients_do_not_reach_the_encoder() -> None:
+    actor = make_actor()
+    actor(make_obs(), stochastic_output=True)
+    loss = actor.get_output_log_prob(torch.zeros(N, 35)).mean()
+    loss.backward()
+    assert all(p.grad is None for p in actor.encoder.parameters())
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in actor.mlp.parameters())
+
+
+def test_vae_learns_velocity_and_next_observation() -> None:
+    torch.manual_seed(0)
+    enc = HistoryEncoder(P, H, latent_dim=4, hidden_dims=(64, 32))
+    opt = torch.optim.Adam(enc.parameters(), lr=3e-3)
+    w_vel, w_next = torch.randn(H * P, 3) / (H * P) ** 0.5, torch.randn(H * P, P) / (H * P) ** 0.5
+    history = torch.randn(512, H * P)
+    vel, nxt = history @ w_vel, history @ w_next
+    first = {k: float(v.detach()) for k, v in enc.loss(history, nxt, vel, kl_weight=1e-3).items()}
+    for _ in range(300):
+        parts = enc.loss(history, nxt, vel, kl_weight=1e-3)
+        opt.zero_grad()
+        parts["total"].backward()
+        opt.step()
+    assert float(parts["velocity"]) < 0.2 * first["velocity"]
+    assert float(parts["reconstruction"]) < 0.5 * first["reconstruction"]
+
+
+def fill_storage(alg: A2CFPPO, steps: int) -> None:
+    obs = make_obs()
+    for t in range(steps):
+        alg.act(obs)
+        obs = make_obs(seed=t + 1)
+        dones = torch.zeros(N, dtype=torch.long)
+        dones[0] = int(t == 1)
+        alg.process_env_step(
+            obs, torch.randn(N), dones, {"time_outs": torch.zeros(N, dtype=torch.bool)}
+        )
+    alg.compute_returns(obs)
+
+
+def test_a2cf_ppo_update_trains_policy_critic_and_encoder_separately() -> None:
+    actor = make_actor()
+    critic = MLPModel(make_obs(), {"critic": ["critic"]}, "critic", 1, hidden_dims=(16,))
+    steps = 4
+    storage = RolloutStorage("rl", N, steps, make_obs(), [35])
+    alg = A2CFPPO(actor, critic, storage, num_learning_epochs=2, num_mini_batches=2)
+    ppo_params = {id(p) for group in alg.optimizer.param_groups for p in group["params"]}
+    assert not ppo_params & {id(p) for p in actor.encoder.parameters()}
+    assert {id(p) for p in critic.parameters()} <= ppo_params
+    assert {id(p) for p in actor.mlp.parameters()} <= ppo_params
+
+    fill_storage(alg, steps)
+    history, next_clean, velocity = alg._encoder_dataset()
+    assert history.shape == (steps * N - 1, H * P)  # env 0 ended its episode at t = 1
+    before_enc = [p.clone() for p in actor.encoder.parameters()]
+    before_head = [p.clone() for p in actor.mlp.parameters()]
+    losses = alg.update()
+    assert {"surrogate", "value", "entropy", "vae_reconstruction", "vae_velocity", "vae_kl"} <= set(
+        losses
+    )
+    assert all(torch.isfinite(torch.tensor(v)) for v in losses.values())
+    assert any((a != b).any() for a, b in zip(before_enc, actor.encoder.parameters(), strict=True))
+    assert any((a != b).any() for a, b in zip(before_head, actor.mlp.parameters(), strict=True))
+    state = alg.save()
+    assert "vae_optimizer_state_dict" in state
+    alg.load(state, None, strict=True)
+
+
+def test_onnx_export_matches_torch(tmp_path) -> None:
+    actor = make_actor()
+    actor.update_normalization(make_obs(64, seed=3))  # non-trivial normaliser statistics
+    info = export_motion_policy(actor, tmp_path / "policy.onnx")
+    assert info["max_abs_error"] < 1e-5 and info["outputs"]["actions"] == [29]
+    obs = make_obs(5, seed=9)
+    onnx_actions = OnnxMotionPolicy(tmp_path / "policy.onnx")(
+        obs["policy"].numpy(), obs["history"].numpy()
+    )
+    torch.testing.assert_close(
+        torch.from_numpy(onnx_actions), actor(obs)[:, :29].detach(), atol=1e-5, rtol=1e-5
+    )
+    assert (tmp_path / "policy.json").is_file()

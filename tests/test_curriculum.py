@@ -1,0 +1,160 @@
+"""Algorithm 1 and the switches of the A2CF assist curriculum, rule by rule."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from rl.curriculum import (
+    PAPER_INITIAL_BOUNDS,
+    AssistCurriculum,
+    AssistStatistics,
+    CurriculumConfig,
+    identical_axis_bounds,
+    paper_initial_bounds,
+    update_bound,
+)
+
+ETA0 = torch.tensor([[40.0, 40.0, 10.0, 40.0, 40.0, 40.0], [40.0, 40.0, 100.0, 30.0, 30.0, 30.0]])
+NORM0 = torch.linalg.vector_norm(ETA0, dim=-1)
+BOTH = torch.tensor([True, True])
+
+
+def test_update_bound_shrinks_when_force_below_band() -> None:
+    eta = update_bound(ETA0, 0.49 * NORM0, BOTH, False, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(eta, 0.8 * ETA0)
+
+
+def test_update_bound_grows_when_force_above_band() -> None:
+    eta = update_bound(ETA0, 1.51 * NORM0, BOTH, False, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(eta, 1.2 * ETA0)
+
+
+def test_update_bound_keeps_inside_band() -> None:
+    for ratio in (0.51, 1.0, 1.49):
+        eta = update_bound(ETA0, ratio * NORM0, BOTH, False, epsilon=0.5, delta=0.2)
+        torch.testing.assert_close(eta, ETA0)
+
+
+def test_update_bound_extra_decay_when_skill_learned() -> None:
+    # inside the band: only the extra decay; below the band: both decays
+    inside = update_bound(ETA0, NORM0, BOTH, True, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(inside, 0.8 * ETA0)
+    below = update_bound(ETA0, 0.1 * NORM0, BOTH, True, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(below, 0.8 * 0.8 * ETA0)
+    above = update_bound(ETA0, 2.0 * NORM0, BOTH, True, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(above, 1.2 * 0.8 * ETA0)
+
+
+def test_update_bound_is_per_phase_and_skips_unvisited() -> None:
+    force = torch.stack([0.1 * NORM0[0], 2.0 * NORM0[1]])
+    eta = update_bound(ETA0, force, BOTH, False, epsilon=0.5, delta=0.2)
+    torch.testing.assert_close(eta[0], 0.8 * ETA0[0])
+    torch.testing.assert_close(eta[1], 1.2 * ETA0[1])
+    eta = update_bound(ETA0, torch.zeros(2), torch.tensor([True, False]), False, 0.5, 0.2)
+    torch.testing.assert_close(eta[1], ETA0[1])  # no sample: no evidence, no change
+    eta = update_bound(ETA0, torch.zeros(2), torch.tensor([False, False]), True, 0.5, 0.2)
+    torch.testing.assert_close(eta, 0.8 * ETA0)  # the skill decay reaches every phase
+
+
+def test_curriculum_defaults_are_the_papers() -> None:
+    cfg = CurriculumConfig()
+    assert (cfg.epsilon, cfg.delta, cfg.negligible_force_n, cfg.less_assist_progress) == (
+        0.5,
+        0.2,
+        0.1,
+        0.8,
+    )
+
+
+def test_less_assist_reward_switches_on_at_80_percent_and_stays_on() -> None:
+    cur = AssistCurriculum(ETA0)
+    half = 0.8 * NORM0  # inside the band: bounds unchanged
+    cur.update(0, half, BOTH, skill_progress=0.79)
+    assert not cur.less_assist_reward
+    cur.update(1, half, BOTH, skill_progress=0.8)
+    assert cur.less_assist_reward
+    cur.update(2, half, BOTH, skill_progress=0.3)
+    assert cur.less_assist_reward
+    torch.testing.assert_close(cur.eta, ETA0)
+
+
+def test_negligible_force_switches_assistance_off_for_good() -> None:
+    cur = AssistCurriculum(ETA0)
+    update = cur.update(0, torch.tensor([0.05, 0.09]), BOTH, skill_progress=0.0)
+    assert not update.assist_enabled and not cur.assist_enabled
+    eta_off = cur.eta.clone()
+    cur.update(1, 2.0 * NORM0, BOTH, skill_progress=1.0)  # nothing moves once off
+    assert not cur.assist_enabled
+    torch.testing.assert_close(cur.eta, eta_off)
+
+
+def test_force_above_threshold_keeps_assistance() -> None:
+    cur = AssistCurriculum(ETA0)
+    cur.update(0, torch.tensor([0.05, 0.2]), BOTH, skill_progress=0.0)
+    assert cur.assist_enabled
+    cur.update(1, torch.tensor([0.05, 0.0]), torch.tensor([True, False]), skill_progress=0.0)
+    assert not cur.assist_enabled  # the only visited phase had a negligible force
+
+
+def test_skill_learned_decay_drives_bounds_to_zero_and_assistance_off() -> None:
+    cur = AssistCurriculum(ETA0)
+    steps = 0
+    while cur.assist_enabled:
+        # the agent uses its whole budget (inside the band): only the extra decay shrinks eta
+        cur.update(steps, torch.linalg.vector_norm(cur.eta, dim=-1), BOTH, skill_progress=1.0)
+        steps += 1
+        assert steps < 100
+    # the largest bound norm times 0.8^k falls under 0.1 N: k = ceil(log(0.1 / max|eta0|) / log 0.8)
+    expected = int(torch.ceil(torch.log(0.1 / NORM0.max()) / torch.log(torch.tensor(0.8))))
+    assert steps == expected
+
+
+def test_state_dict_round_trip() -> None:
+    cur = AssistCurriculum(ETA0)
+    cur.update(0, 0.1 * NORM0, BOTH, skill_progress=0.9)
+    state = cur.state_dict()
+    other = AssistCurriculum(ETA0)
+    other.load_state_dict(state)
+    torch.testing.assert_close(other.eta, cur.eta)
+    assert other.less_assist_reward and other.assist_enabled and other.num_updates == 1
+    with pytest.raises(ValueError, match="another task"):
+        AssistCurriculum(ETA0[:1]).load_state_dict(state)
+
+
+def test_bad_inputs_are_reported() -> None:
+    with pytest.raises(ValueError, match="num_phases, 6"):
+        AssistCurriculum(torch.ones(2, 5))
+    with pytest.raises(ValueError, match=">= 0"):
+        AssistCurriculum(-torch.ones(1, 6))
+    with pytest.raises(ValueError, match="epsilon"):
+        CurriculumConfig(epsilon=1.5)
+    with pytest.raises(ValueError, match="2 phases"):
+        AssistCurriculum(ETA0).update(0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0)
+    with pytest.raises(ValueError, match="no initial assist bound"):
+        paper_initial_bounds("juggle", 1)
+
+
+def test_paper_table_and_identical_bounds() -> None:
+    stand = paper_initial_bounds("stand", 1)
+    assert stand.tolist() == [list(PAPER_INITIAL_BOUNDS["walk"][0])]
+    flip = paper_initial_bounds("backflip", 5)
+    assert flip[2, 2] == 100.0 and flip[0, 2] == 10.0
+    same = identical_axis_bounds(flip)
+    torch.testing.assert_close(same[2], torch.tensor([60.0, 60.0, 60.0, 30.0, 30.0, 30.0]))
+    torch.testing.assert_close(
+        same[0], torch.tensor([30.0, 30.0, 30.0, 70.0 / 3, 70.0 / 3, 70.0 / 3])
+    )
+
+
+def test_assist_statistics_mean_norm_per_phase() -> None:
+    stats = AssistStatistics(num_phases=3)
+    wrench = torch.tensor([[3.0, 4.0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 2.0], [1.0, 0, 0, 0, 0, 0]])
+    stats.add({"applied_wrench": wrench, "phase": torch.tensor([0, 2, 0])})
+    stats.add({"applied_wrench": torch.zeros(3, 6), "phase": torch.tensor([0, 0, 0])})
+    norm, visited = stats.result()
+    torch.testing.assert_close(norm, torch.tensor([(5.0 + 1.0) / 5, 0.0, 2.0]))
+    assert visited.tolist() == [True, False, True]
+    assert stats.mean_force_n() == pytest.approx((5.0 + 0.0 + 1.0) / 3 / 2)
+    stats.reset()
+    assert not stats.result()[1].any()
