@@ -1,0 +1,92 @@
+"""Applying the assist head's output: squash into the bound, random mask, pelvis ``xfrc_applied``.
+
+The contract (``rl_contract.md``): actions[:, 29:35] are the assist head's raw, unbounded output;
+the applied pelvis wrench is F = mask * eta[phase] * tanh(raw), world-frame force [N] then torque
+[Nm] at the pelvis centre of mass (MuJoCo ``xfrc_applied`` of the pelvis body); each mask component
+is 0 with probability zeta, resampled every control step; F = 0 when assistance is disabled.
+"""
+
+from __future__ import annotations
+
+import torch
+
+WRENCH_DIM = 6
+"""Force (3) then torque (3)."""
+
+
+def squash_wrench(raw: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
+    """Map raw head outputs (N, 6) into the hypercube |F_i| <= bound_i (N, 6): bound * tanh(raw)."""
+    return bound * torch.tanh(raw)
+
+
+def sample_mask(
+    shape: tuple[int, ...], drop_prob: float, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Random mask of 0/1 floats, each entry 0 with probability ``drop_prob`` (zeta)."""
+    if not 0.0 <= drop_prob <= 1.0:
+        raise ValueError(f"Random mask probability zeta must be in [0, 1], got {drop_prob}.")
+    return (torch.rand(shape, generator=generator) >= drop_prob).to(torch.float32)
+
+
+def assist_wrench(raw: torch.Tensor, bound: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """The wrench (N, 6) to apply: mask * bound * tanh(raw)."""
+    return mask * squash_wrench(raw, bound)
+
+
+class AssistState:
+    """The assist settings the runner changes between iterations, and the wrench they produce.
+
+    Holds eta (num_phases, 6) [N, Nm], whether assistance is on, zeta and the less-assist switch.
+    """
+
+    def __init__(
+        self,
+        bound: torch.Tensor,
+        enabled: bool,
+        mask_prob: float,
+        less_assist_reward: bool,
+        generator: torch.Generator | None = None,
+    ) -> None:
+        self.bound = torch.zeros_like(bound, dtype=torch.float32)
+        self.set_bound(bound)
+        self.enabled = bool(enabled)
+        self.mask_prob = 0.0
+        self.set_mask_prob(mask_prob)
+        self.less_assist_reward = bool(less_assist_reward)
+        self.generator = generator
+
+    @property
+    def num_phases(self) -> int:
+        """Number of task phases, one bound row each."""
+        return self.bound.shape[0]
+
+    def set_bound(self, bound: torch.Tensor) -> None:
+        """Replace eta; ``bound`` must be (num_phases, 6), finite and non-negative."""
+        bound = torch.as_tensor(bound, dtype=torch.float32)
+        if bound.shape != self.bound.shape:
+            raise ValueError(
+                f"Assist bound eta must have shape {tuple(self.bound.shape)} (num_phases, 6), "
+                f"got {tuple(bound.shape)}."
+            )
+        if not torch.isfinite(bound).all() or (bound < 0).any():
+            raise ValueError(f"Assist bound eta must be finite and >= 0, got {bound.tolist()}.")
+        self.bound = bound.clone()
+
+    def set_mask_prob(self, mask_prob: float) -> None:
+        """Set zeta, the probability of dropping each wrench component."""
+        if not 0.0 <= float(mask_prob) <= 1.0:
+            raise ValueError(f"Random mask probability zeta must be in [0, 1], got {mask_prob}.")
+        self.mask_prob = float(mask_prob)
+
+    def wrench(
+        self, raw: torch.Tensor, phase: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Wrench (N, 6) for raw head outputs (N, 6) of envs in phases (N,).
+
+        Returns (wrench, bound of each env's phase (N, 6), mask (N, 6)); all zero when disabled.
+        """
+        bound = self.bound[phase]
+        mask = sample_mask(tuple(raw.shape), self.mask_prob, self.generator)
+        if not self.enabled:
+            return torch.zeros_like(raw), bound, mask
+        return assist_wrench(raw, bound, mask), bound, mask

@@ -1,0 +1,112 @@
+"""The physics model the batched envs step, and where things live in its state and sensor rows.
+
+The env steps a *collision-primitive* G1: :func:`robots.mujoco_model.build_mujoco_spec` with the link
+meshes removed (their inertials come from the URDF, the meshes carry no mass), so only the 8 sole
+spheres touch the floor. Why: a compiled model with meshes is ~36 MB per copy (collision structures),
+which rules out one randomised model per env (512 envs would need ~18 GB), and mesh-floor contacts
+only matter once the robot lies on the ground, which the tasks terminate before. Joint torques are
+added as ``actuatorfrc`` sensors so rewards see the actual (clamped) actuator forces.
+
+States are ``mjSTATE_FULLPHYSICS`` rows; controls are ``mjSTATE_CTRL | mjSTATE_XFRC_APPLIED`` rows
+(29 joint targets, then ``xfrc_applied`` of every body: world-frame force [N] and torque [Nm] at
+the body's centre of mass).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from robots import g1
+from robots.mujoco_model import STAND_KEYFRAME, MujocoModelConfig, build_mujoco_spec
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+CONTROL_SPEC = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+TORQUE_SENSOR_PREFIX = "torque_"
+
+
+def build_physics_model(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.MjModel:
+    """Compile the mesh-free G1 the envs step (a fresh, writable model on every call)."""
+    spec = build_mujoco_spec(cfg)
+    for geom in list(spec.geoms):
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
+            spec.delete(geom)
+    for mesh in list(spec.meshes):
+        spec.delete(mesh)
+    for joint in g1.JOINTS:
+        spec.add_sensor(
+            name=TORQUE_SENSOR_PREFIX + joint.name,
+            type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+            objname=joint.name,
+        )
+    return spec.compile()
+
+
+def _state_offset(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
+    """Offset of one component inside a FULLPHYSICS state row (components are stored in bit order)."""
+    offset = 0
+    bit = 1
+    while bit < int(component):
+        if int(STATE_SPEC) & bit:
+            offset += mujoco.mj_stateSize(model, bit)
+        bit <<= 1
+    return offset
+
+
+def _sensor_slice(model: mujoco.MjModel, name: str) -> slice:
+    sensor = model.sensor(name)
+    start = int(sensor.adr[0])
+    return slice(start, start + int(sensor.dim[0]))
+
+
+@dataclass(frozen=True)
+class ModelLayout:
+    """Column indices into state, control and sensor rows of the physics model."""
+
+    nstate: int  # length of a FULLPHYSICS state row
+    ncontrol: int  # length of a CTRL | XFRC_APPLIED control row
+    nsensordata: int  # length of a sensor row
+    time: int  # state column of the simulation time [s]
+    qpos: slice  # state columns of qpos (36): p_w, quat wxyz, 29 joints
+    qvel: slice  # state columns of qvel (35): v_w, omega_b, 29 joint rates
+    ctrl: slice  # control columns of the 29 joint targets [rad]
+    pelvis_wrench: slice  # control columns of the pelvis xfrc_applied: force_w [N], torque_w [Nm]
+    pelvis_body: int  # MuJoCo body id of the pelvis
+    foot_touch: tuple[int, int]  # sensor columns of left / right sole normal force [N]
+    foot_pos: tuple[slice, slice]  # sensor columns of left / right sole position p_w [m]
+    torque: slice  # sensor columns of the 29 actuator forces [Nm]
+    stand_state: np.ndarray  # FULLPHYSICS row of the standing keyframe, shape (nstate,)
+
+
+def model_layout(model: mujoco.MjModel) -> ModelLayout:
+    """Index the state, control and sensor rows of a model from :func:`build_physics_model`."""
+    nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+    qpos0 = _state_offset(model, mujoco.mjtState.mjSTATE_QPOS)
+    qvel0 = _state_offset(model, mujoco.mjtState.mjSTATE_QVEL)
+    pelvis = model.body(g1.BASE_LINK).id
+    xfrc0 = model.nu
+    torque_sensors = [_sensor_slice(model, TORQUE_SENSOR_PREFIX + j.name) for j in g1.JOINTS]
+    if any(s.start != torque_sensors[0].start + i for i, s in enumerate(torque_sensors)):
+        raise RuntimeError("Torque sensors are not contiguous; rebuild with build_physics_model().")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEYFRAME).id)
+    stand = np.empty(nstate)
+    mujoco.mj_getState(model, data, stand, STATE_SPEC)
+    return ModelLayout(
+        nstate=nstate,
+        ncontrol=mujoco.mj_stateSize(model, CONTROL_SPEC),
+        nsensordata=model.nsensordata,
+        time=_state_offset(model, mujoco.mjtState.mjSTATE_TIME),
+        qpos=slice(qpos0, qpos0 + model.nq),
+        qvel=slice(qvel0, qvel0 + model.nv),
+        ctrl=slice(0, model.nu),
+        pelvis_wrench=slice(xfrc0 + 6 * pelvis, xfrc0 + 6 * pelvis + 6),
+        pelvis_body=pelvis,
+        foot_touch=tuple(_sensor_slice(model, f"{s}_touch").start for s in g1.SOLE_FRAMES),
+        foot_pos=tuple(_sensor_slice(model, f"{s}_pos") for s in g1.SOLE_FRAMES),
+        torque=slice(torque_sensors[0].start, torque_sensors[-1].stop),
+        stand_state=stand,
+    )

@@ -1,0 +1,65 @@
+"""The per-step robot state handed to tasks and reward terms, as batched torch tensors."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+
+def quat_rotate_inverse(quat_wxyz: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
+    """Rotate world vectors (N, 3) into the frames of unit quaternions (N, 4) (w, x, y, z): R^T v."""
+    w = quat_wxyz[:, :1]
+    xyz = quat_wxyz[:, 1:]
+    t = 2.0 * torch.cross(xyz, vec, dim=-1)
+    return vec - w * t + torch.cross(xyz, t, dim=-1)
+
+
+def quat_rotate(quat_wxyz: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
+    """Rotate vectors (N, 3) from the frames of unit quaternions (N, 4) (w, x, y, z) to world: R v."""
+    w = quat_wxyz[:, :1]
+    xyz = quat_wxyz[:, 1:]
+    t = 2.0 * torch.cross(xyz, vec, dim=-1)
+    return vec + w * t + torch.cross(xyz, t, dim=-1)
+
+
+def quat_multiply(a_wxyz: torch.Tensor, b_wxyz: torch.Tensor) -> torch.Tensor:
+    """Hamilton products a * b of quaternion batches (N, 4) in w, x, y, z order."""
+    aw, ax, ay, az = a_wxyz.unbind(-1)
+    bw, bx, by, bz = b_wxyz.unbind(-1)
+    return torch.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        dim=-1,
+    )
+
+
+@dataclass
+class EnvState:
+    """Robot and env state after a policy step, float32 tensors with a leading env axis N.
+
+    Built once per step by :class:`rl.envs.G1VecEnv`; tasks and reward terms only read it.
+    """
+
+    base_pos_w: torch.Tensor  # (N, 3) pelvis position [m]
+    base_quat_w: torch.Tensor  # (N, 4) pelvis orientation, w x y z
+    base_lin_vel_w: torch.Tensor  # (N, 3) pelvis linear velocity, world frame [m/s]
+    base_lin_vel_b: torch.Tensor  # (N, 3) pelvis linear velocity, pelvis frame [m/s]
+    base_ang_vel_b: torch.Tensor  # (N, 3) pelvis angular velocity, pelvis frame [rad/s]
+    projected_gravity_b: torch.Tensor  # (N, 3) unit gravity direction in the pelvis frame [-]
+    joint_pos_rad: torch.Tensor  # (N, 29) joint angles [rad]
+    joint_vel_rps: torch.Tensor  # (N, 29) joint rates [rad/s]
+    joint_torque_nm: torch.Tensor  # (N, 29) actuator torques of the last physics step [Nm]
+    foot_contact_force_n: torch.Tensor  # (N, 2) left / right sole normal force [N]
+    foot_pos_w: torch.Tensor  # (N, 2, 3) left / right sole centre position [m]
+    action: torch.Tensor  # (N, 29) motion action of this step [-]
+    last_action: torch.Tensor  # (N, 29) motion action of the previous step [-]
+    applied_wrench: (
+        torch.Tensor
+    )  # (N, 6) pelvis wrench applied this step: force_w [N], torque_w [Nm]
+    assist_bound: torch.Tensor  # (N, 6) eta of each env's phase [N, Nm]
+    episode_time_s: torch.Tensor  # (N,) time since the env's last reset [s]
