@@ -13,6 +13,8 @@ import sys
 COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.info",
     "a2cf_mb.commands.bench",
+    "a2cf_mb.commands.train",
+    "a2cf_mb.commands.eval",
 )
 
 

@@ -1,0 +1,29 @@
+"""``a2cf-mb eval RUN_DIR``: roll out a trained motion policy without assistance."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from a2cf_mb.config_cli import add_config_arguments, config_from_args
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``eval`` subcommand."""
+    from rl.runner import EvalConfig
+
+    parser = subparsers.add_parser(
+        "eval",
+        help="roll out a run's exported motion policy with assistance off; survival and return",
+    )
+    parser.add_argument("run_dir", help="run folder written by `a2cf-mb train`")
+    add_config_arguments(parser, EvalConfig)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Call :func:`rl.runner.evaluate` and print its result."""
+    from rl.runner import EvalConfig, evaluate
+
+    print(json.dumps(evaluate(args.run_dir, config_from_args(EvalConfig, args)), indent=2))
+    return 0

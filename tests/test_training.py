@@ -1,0 +1,150 @@
+"""Training loop on the real batched MuJoCo G1 env: every mode, checkpoint/resume, CLI, learning."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+import torch
+
+from a2cf_mb.cli import main as cli_main
+from rl.curriculum import PAPER_INITIAL_BOUNDS
+from rl.runner import (
+    CHECKPOINT_DIR,
+    CURRICULUM_LOG,
+    LAST_CHECKPOINT,
+    EvalConfig,
+    ModelConfig,
+    PPOConfig,
+    TrainConfig,
+    evaluate,
+    train,
+)
+
+TINY_MODEL = ModelConfig(
+    motion_hidden_dims=(32, 32),
+    assist_hidden_dims=(16,),
+    critic_hidden_dims=(32, 32),
+    encoder_hidden_dims=(32,),
+    latent_dim=4,
+)
+TINY_PPO = PPOConfig(num_learning_epochs=1, num_mini_batches=2)
+
+
+def tiny_config(tmp_path, mode: str, **changes) -> TrainConfig:
+    """4 envs x 8 steps per iteration, small networks."""
+    base = TrainConfig(
+        task="stand",
+        mode=mode,
+        num_envs=4,
+        iterations=2,
+        num_steps_per_env=8,
+        out=str(tmp_path),
+        run_name=mode,
+        save_interval=1,
+        ppo=TINY_PPO,
+        model=TINY_MODEL,
+    )
+    return dataclasses.replace(base, **changes)
+
+
+def read_jsonl(path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+@pytest.mark.parametrize("mode", ["baseline", "a2cf", "no-pi", "no-id", "no-rm"])
+def test_two_iterations_of_every_mode(tmp_path, mode: str) -> None:
+    result = train(tiny_config(tmp_path, mode), verbose=False)
+    run = result.run_dir
+    assert result.iterations_done == 2
+    for name in ("config.json", "git.json", "metrics.json", "policy.onnx", "policy.json"):
+        assert (run / name).is_file(), name
+    assert list(run.glob("events.out.tfevents*")), "no TensorBoard events"
+    assert (run / CHECKPOINT_DIR / LAST_CHECKPOINT).is_file()
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert len(metrics["iterations"]) == 2
+    assert metrics["onnx"]["max_abs_error"] < 1e-4
+    assert all(torch.isfinite(torch.tensor(r["mean_step_reward"])) for r in metrics["iterations"])
+    state = torch.load(run / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    actor_keys = state["actor_state_dict"].keys()
+    has_assist_head = any(k.startswith("mlp.assist.") for k in actor_keys)
+    assert has_assist_head == (mode != "baseline")
+    if mode == "baseline":
+        assert not (run / CURRICULUM_LOG).exists()
+        assert all(r["applied_force_n"] == 0.0 for r in metrics["iterations"])
+        return
+    log = read_jsonl(run / CURRICULUM_LOG)
+    assert [line["iteration"] for line in log] == [0, 1]
+    assert all(line["visited"] == [True] for line in log)
+    assert all(line["applied_force_n"] > 0.0 for line in log)  # the assist head pushed the robot
+    eta0 = json.loads((run / "config.json").read_text())["eta0"]
+    if mode == "no-id":
+        assert eta0[0][0] == eta0[0][1] == eta0[0][2] and eta0[0][3] == eta0[0][4] == eta0[0][5]
+    else:
+        assert eta0 == [list(PAPER_INITIAL_BOUNDS["stand"][0])]
+    uses_privileged = mode in ("a2cf", "no-id", "no-rm")
+    config = json.loads((run / "config.json").read_text())
+    assert ("privileged" in config["rsl_rl"]["obs_groups"]["actor"]) == uses_privileged
+
+
+def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
+    cfg = tiny_config(tmp_path, "a2cf")
+    first = train(cfg, verbose=False)
+    assert first.iterations_done == 2
+    ckpt = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    assert ckpt["completed_iterations"] == 2
+    eta_at_stop = ckpt["curriculum"]["eta"]
+    # "kill" = the process stopped after iteration 2; resume up to 4 iterations in total
+    resumed = train(
+        dataclasses.replace(TrainConfig(), resume=str(first.run_dir), iterations=4), verbose=False
+    )
+    assert resumed.iterations_done == 4
+    log = read_jsonl(first.run_dir / CURRICULUM_LOG)
+    assert [line["iteration"] for line in log] == [0, 1, 2, 3]
+    torch.testing.assert_close(torch.tensor(log[1]["eta"]), eta_at_stop)
+    # the third update started from the stored bound: it is eta_at_stop scaled by 0.8, 1 or 1.2
+    ratio = torch.tensor(log[2]["eta"]) / eta_at_stop
+    assert torch.allclose(ratio, ratio[0, 0].expand_as(ratio))
+    # Algorithm 1 factors: 0.8 / 1 / 1.2, times 0.8 when the skill counts as learned
+    assert any(abs(float(ratio[0, 0]) - r) < 1e-5 for r in (0.8, 1.0, 1.2, 0.64, 0.96))
+    metrics = json.loads((first.run_dir / "metrics.json").read_text())
+    assert [row["iteration"] for row in metrics["iterations"]] == [0, 1, 2, 3]
+    final = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    assert final["completed_iterations"] == 4
+    assert final["curriculum"]["num_updates"] == 4
+    assert final["logger"]["tot_timesteps"] == 4 * cfg.num_envs * cfg.num_steps_per_env
+
+
+def test_cli_train_then_eval(tmp_path) -> None:
+    argv = [
+        "train", "--task", "stand", "--mode", "a2cf", "--num-envs", "4", "--iterations", "1",
+        "--num-steps-per-env", "8", "--out", str(tmp_path), "--run-name", "cli",
+        "--ppo-num-mini-batches", "2", "--ppo-num-learning-epochs", "1",
+        "--model-motion-hidden-dims", "32", "32", "--model-critic-hidden-dims", "32",
+        "--model-encoder-hidden-dims", "32", "--model-assist-hidden-dims", "16",
+    ]  # fmt: skip
+    assert cli_main(argv) == 0
+    run = tmp_path / "cli"
+    saved = json.loads((run / "config.json").read_text())["train"]
+    assert saved["model"]["motion_hidden_dims"] == [32, 32] and saved["iterations"] == 1
+    assert cli_main(["train", "--resume", str(run), "--iterations", "2"]) == 0
+    assert len(read_jsonl(run / CURRICULUM_LOG)) == 2
+    result = evaluate(run, EvalConfig(num_envs=4, num_steps=20))
+    assert result["num_steps"] == 20 and 0.0 <= result["survival_fraction"] <= 1.0
+    assert (run / "eval.json").is_file()
+    assert cli_main(["eval", str(run), "--num-envs", "2", "--num-steps", "5", "--no-use-onnx"]) == 0
+
+
+@pytest.mark.slow
+def test_stand_return_rises_in_a_short_cpu_run(tmp_path) -> None:
+    cfg = TrainConfig(
+        task="stand", mode="a2cf", num_envs=32, iterations=40, num_steps_per_env=24,
+        out=str(tmp_path), run_name="slow", save_interval=20,
+    )  # fmt: skip
+    result = train(cfg, verbose=False)
+    rows = result.metrics["iterations"]
+    first = sum(r["mean_step_reward"] for r in rows[:5]) / 5
+    last = sum(r["mean_step_reward"] for r in rows[-5:]) / 5
+    print(f"mean step reward first 5 iterations {first:.3f}, last 5 {last:.3f}")
+    assert last > first + 0.1 * abs(first)
