@@ -551,9 +551,12 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
         )
 
     remaining = cfg.iterations - runner.current_learning_iteration
-    if remaining > 0:
-        with quiet:
-            runner.learn(remaining)
+    try:
+        if remaining > 0:
+            with quiet:
+                runner.learn(remaining)
+    finally:
+        env.close()
 
     metrics = summarise(runner, cfg)
     if cfg.export_onnx:
@@ -647,7 +650,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     fell = torch.zeros(cfg.num_envs, dtype=torch.bool)
     obs = env.get_observations()
     zeros = torch.zeros(cfg.num_envs, ASSIST_ACTION_DIM)
-    with torch.inference_mode():
+    with torch.inference_mode(), contextlib.closing(env):
         for _ in range(num_steps):
             actions = policy(obs).reshape(cfg.num_envs, motion_dim)
             obs, rewards, dones, extras = env.step(torch.cat([actions, zeros], dim=-1))
