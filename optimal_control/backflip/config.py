@@ -1,0 +1,96 @@
+"""Configuration of the backflip trajectory optimisation: phases, limits, weights, solver."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+PHASE_NAMES: tuple[str, ...] = ("stand", "crouch", "jump", "air", "land")
+"""The paper's backflip FSM phases, in order (index = phase id 0..4)."""
+STANCE_PHASES = (0, 1, 2, 4)
+"""Phases with both soles on the ground."""
+AIR_PHASE = 3
+
+
+@dataclass(frozen=True)
+class PhaseSpec:
+    """One phase of the flip: knots and duration bounds (the duration is a decision variable)."""
+
+    intervals: int  # number of time intervals (knots - 1) in the phase
+    min_duration_s: float  # lower bound on the phase duration [s]
+    max_duration_s: float  # upper bound on the phase duration [s]
+    guess_duration_s: float  # initial guess of the duration [s]
+
+
+@dataclass(frozen=True)
+class BackflipConfig:
+    """Everything the backflip TO needs; flat scalars are exposed as CLI flags."""
+
+    stand_intervals: int = 3  # intervals in Stand
+    crouch_intervals: int = 10  # intervals in Crouch
+    jump_intervals: int = 10  # intervals in Jump (push-off)
+    air_intervals: int = 24  # intervals in Air
+    land_intervals: int = 14  # intervals in Land
+    stand_duration_s: tuple[float, float, float] = (0.06, 0.3, 0.1)  # Stand (min, max, guess) [s]
+    crouch_duration_s: tuple[float, float, float] = (0.3, 0.7, 0.5)  # Crouch (min, max, guess) [s]
+    jump_duration_s: tuple[float, float, float] = (0.1, 0.5, 0.25)  # Jump (min, max, guess) [s]
+    air_duration_s: tuple[float, float, float] = (0.35, 0.8, 0.55)  # Air (min, max, guess) [s]
+    land_duration_s: tuple[float, float, float] = (0.3, 0.8, 0.6)  # Land (min, max, guess) [s]
+    torque_scale: float = 1.0  # alpha: torque limits are alpha * effort limit [-]
+    friction_coefficient: float = 0.7  # sole friction pyramid coefficient mu [-]
+    max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]
+    max_wrench_torque_nm: float = 200.0  # bound on each pelvis wrench torque component [Nm]
+    forbid_wrench: bool = False  # if True the pelvis wrench is fixed to zero (no help allowed)
+    # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2 [1/s]
+    wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)
+    torque_weight: float = 1e-3  # cost on (tau / tau_max)^2 integrated over time [1/s]
+    acceleration_weight: float = 1e-4  # cost on joint accelerations^2 integrated [s^3/rad^2]
+    min_air_pelvis_height_m: float = 0.25  # pelvis origin stays this high in the air [m]
+    sole_drift_tolerance_m: float = 0.002  # stance soles stay this close to their placement [m]
+    min_air_sole_height_m: float = 0.0  # sole corners above the floor in the air [m]
+    final_joint_tolerance_rad: float = 0.1  # landed joints within this of the stand pose [rad]
+    max_iter: int = 400  # IPOPT iterations per continuation stage [-]
+    tol: float = 1e-6  # IPOPT convergence tolerance [-]
+    hessian: str = "exact"  # IPOPT Hessian: "exact" or "limited-memory"
+    print_level: int = 0  # IPOPT print level (0 silent, 5 verbose) [-]
+    warm_start: str = ""  # path of a cached solution (npz) to warm-start from; "" = cold
+    cache_dir: str = "~/.cache/a2cf-mb/backflip"  # where solutions are cached for warm starts
+
+    def phases(self) -> tuple[PhaseSpec, ...]:
+        """The five phases as :class:`PhaseSpec`, in :data:`PHASE_NAMES` order."""
+        counts = (
+            self.stand_intervals,
+            self.crouch_intervals,
+            self.jump_intervals,
+            self.air_intervals,
+            self.land_intervals,
+        )
+        bounds = (
+            self.stand_duration_s,
+            self.crouch_duration_s,
+            self.jump_duration_s,
+            self.air_duration_s,
+            self.land_duration_s,
+        )
+        out = []
+        for name, n, (lo, hi, guess) in zip(PHASE_NAMES, counts, bounds, strict=True):
+            if n < 1:
+                raise ValueError(f"Phase '{name}' needs at least one interval, got {n}.")
+            if not 0.0 < lo <= hi:
+                raise ValueError(
+                    f"Phase '{name}' duration bounds ({lo}, {hi}) must be 0 < min <= max."
+                )
+            out.append(PhaseSpec(n, lo, hi, min(max(guess, lo), hi)))
+        return tuple(out)
+
+    def validate(self) -> BackflipConfig:
+        """Check values a user can get wrong; return self."""
+        self.phases()
+        if self.torque_scale < 0.0:
+            raise ValueError(f"torque_scale (alpha) must be >= 0, got {self.torque_scale}.")
+        if self.friction_coefficient <= 0.0:
+            raise ValueError(f"friction_coefficient must be > 0, got {self.friction_coefficient}.")
+        if self.hessian not in ("exact", "limited-memory"):
+            raise ValueError(f"hessian must be 'exact' or 'limited-memory', got '{self.hessian}'.")
+        if not self.wrench_weights:
+            raise ValueError("wrench_weights needs at least one continuation stage.")
+        return self

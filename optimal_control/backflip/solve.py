@@ -1,0 +1,232 @@
+"""Solve the backflip NLP with IPOPT: continuation on the wrench cost, warm starts, a cache."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from optimal_control.backflip.config import BackflipConfig
+from optimal_control.backflip.sagittal import SagittalModel, build_sagittal_model
+from optimal_control.backflip.transcription import (
+    Solution,
+    Transcription,
+    build_transcription,
+    initial_guess,
+)
+
+
+@dataclass
+class StageStats:
+    """IPOPT statistics of one continuation stage."""
+
+    wrench_weight: float  # pelvis wrench cost weight of this stage
+    iterations: int  # IPOPT iterations
+    wall_time_s: float  # wall time of the stage [s]
+    return_status: str  # IPOPT return status
+    success: bool  # IPOPT reported success
+    objective: float  # final objective value
+
+
+@dataclass
+class SolveResult:
+    """Outcome of :func:`solve_backflip_to`."""
+
+    solution: Solution
+    transcription: Transcription
+    stages: list[StageStats]
+    build_time_s: float  # time to build the NLP and the solver [s]
+    warm_started: bool  # started from a cached / given solution
+    violations: dict[str, float] = field(default_factory=dict)  # group -> max violation
+
+    @property
+    def success(self) -> bool:
+        """All stages converged and the constraints hold."""
+        return all(s.success for s in self.stages) and self.max_violation < 1e-5
+
+    @property
+    def max_violation(self) -> float:
+        """Largest constraint violation over all groups."""
+        return max(self.violations.values(), default=0.0)
+
+    @property
+    def total_iterations(self) -> int:
+        """IPOPT iterations over all stages."""
+        return sum(s.iterations for s in self.stages)
+
+    @property
+    def solve_time_s(self) -> float:
+        """IPOPT wall time over all stages [s]."""
+        return sum(s.wall_time_s for s in self.stages)
+
+    def stats_dict(self) -> dict:
+        """JSON-friendly solver statistics."""
+        return {
+            "stages": [asdict(s) for s in self.stages],
+            "build_time_s": self.build_time_s,
+            "solve_time_s": self.solve_time_s,
+            "total_iterations": self.total_iterations,
+            "warm_started": self.warm_started,
+            "num_variables": int(self.transcription.nlp["x"].shape[0]),
+            "num_constraints": int(self.transcription.nlp["g"].shape[0]),
+            "max_violation": self.max_violation,
+            "violations": self.violations,
+            "success": self.success,
+        }
+
+
+class InfeasibleBackflipError(RuntimeError):
+    """IPOPT ended without a feasible point; the message names the violated constraint groups."""
+
+    def __init__(self, message: str, result: SolveResult, saved_to: Path | None) -> None:
+        super().__init__(message)
+        self.result = result
+        self.saved_to = saved_to
+
+
+def constraint_violations(tr: Transcription, x: np.ndarray, g: np.ndarray) -> dict[str, float]:
+    """Max violation of each constraint group (and of the variable bounds) at (x, g)."""
+    out = {}
+    for name, a, b in tr.groups:
+        viol = np.maximum(tr.lbg[a:b] - g[a:b], 0.0) + np.maximum(g[a:b] - tr.ubg[a:b], 0.0)
+        out[name] = float(viol.max()) if b > a else 0.0
+    bound = np.maximum(tr.lbx - x, 0.0) + np.maximum(x - tr.ubx, 0.0)
+    out["variable bounds (joint limits, speeds, wrench, durations)"] = float(bound.max())
+    return out
+
+
+def config_key(cfg: BackflipConfig) -> str:
+    """Hash of the fields that define the problem (not solver or I/O options)."""
+    skip = {"max_iter", "tol", "print_level", "warm_start", "cache_dir", "hessian"}
+    data = {k: v for k, v in asdict(cfg).items() if k not in skip}
+    return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def _solver(tr: Transcription, cfg: BackflipConfig) -> ca.Function:
+    opts = {
+        "expand": True,
+        "print_time": False,
+        "ipopt": {
+            "print_level": cfg.print_level,
+            "max_iter": cfg.max_iter,
+            "tol": cfg.tol,
+            "acceptable_tol": 1e-4,
+            "constr_viol_tol": 1e-6,
+            "mu_strategy": "adaptive",
+            "linear_solver": "mumps",
+            "hessian_approximation": cfg.hessian,
+            "sb": "yes",
+        },
+    }
+    return ca.nlpsol("backflip", "ipopt", tr.nlp, opts)
+
+
+def solve_backflip_to(
+    cfg: BackflipConfig,
+    model: SagittalModel | None = None,
+    warm_start: Solution | None = None,
+    raise_on_failure: bool = True,
+    failure_path: Path | None = None,
+) -> SolveResult:
+    """Solve the backflip TO of ``cfg``.
+
+    Cold start: the hand-designed guess of :func:`initial_guess`, then one IPOPT solve per entry of
+    ``cfg.wrench_weights`` (cheap wrench first, so the first stage only has to find a kinematically
+    sound flip; each later stage starts from the previous one and pushes the help to zero where the
+    robot can do without). Warm start (``warm_start`` or ``cfg.warm_start`` path): only the last
+    weight is solved.
+
+    If the last stage ends infeasible and ``raise_on_failure``, the last iterate is saved to
+    ``failure_path`` (if given) and :class:`InfeasibleBackflipError` names the violated groups.
+    """
+    cfg.validate()
+    model = model or build_sagittal_model()
+    t0 = time.perf_counter()
+    tr = build_transcription(model, cfg)
+    solver = _solver(tr, cfg)
+    build_time = time.perf_counter() - t0
+    if warm_start is None and cfg.warm_start:
+        path = Path(cfg.warm_start).expanduser()
+        if not path.is_file():
+            raise FileNotFoundError(f"--warm-start {path}: no such file (a solution .npz).")
+        warm_start = Solution.from_npz(np.load(path))
+    weights = list(cfg.wrench_weights)
+    if warm_start is not None:
+        if warm_start.r.shape[0] != tr.grid.num_knots:
+            raise ValueError(
+                f"Warm start has {warm_start.r.shape[0]} knots, the problem {tr.grid.num_knots}: "
+                "use a solution of the same phase intervals."
+            )
+        guess, weights = warm_start, weights[-1:]
+    else:
+        guess = initial_guess(model, cfg)
+    x = np.clip(tr.pack(guess), tr.lbx, tr.ubx)
+    stages: list[StageStats] = []
+    lam_x = lam_g = None
+    g = np.zeros(tr.lbg.shape)
+    for weight in weights:
+        args = {"x0": x, "lbx": tr.lbx, "ubx": tr.ubx, "lbg": tr.lbg, "ubg": tr.ubg, "p": weight}
+        if lam_g is not None:
+            args.update(lam_x0=lam_x, lam_g0=lam_g)
+        t1 = time.perf_counter()
+        out = solver(**args)
+        wall = time.perf_counter() - t1
+        st = solver.stats()
+        x = np.asarray(out["x"]).ravel()
+        g = np.asarray(out["g"]).ravel()
+        lam_x, lam_g = out["lam_x"], out["lam_g"]
+        stages.append(
+            StageStats(
+                float(weight),
+                int(st.get("iter_count", -1)),
+                wall,
+                str(st.get("return_status", "")),
+                bool(st.get("success", False)),
+                float(out["f"]),
+            )
+        )
+    result = SolveResult(
+        tr.solution(x),
+        tr,
+        stages,
+        build_time,
+        warm_start is not None,
+        constraint_violations(tr, x, g),
+    )
+    if raise_on_failure and result.max_violation > 1e-4:
+        saved = None
+        if failure_path is not None:
+            failure_path.parent.mkdir(parents=True, exist_ok=True)
+            np.savez(failure_path, **result.solution.to_npz_dict())
+            saved = failure_path
+        bad = {k: v for k, v in result.violations.items() if v > 1e-4}
+        lines = "\n".join(
+            f"  - {k}: max violation {v:.3g}" for k, v in sorted(bad.items(), key=lambda kv: -kv[1])
+        )
+        raise InfeasibleBackflipError(
+            f"The backflip TO found no feasible motion (IPOPT: {stages[-1].return_status}). "
+            f"Violated constraint groups:\n{lines}\n"
+            + (f"Last iterate saved to {saved}. " if saved else "")
+            + "Allow the pelvis wrench (no --forbid-wrench), raise --torque-scale or widen the "
+            "phase duration bounds.",
+            result,
+            saved,
+        )
+    return result
+
+
+def cache_path(cfg: BackflipConfig) -> Path:
+    """Where the solution of ``cfg`` is cached for warm starts."""
+    return Path(cfg.cache_dir).expanduser() / f"backflip_{config_key(cfg)}.npz"
+
+
+def save_solution(sol: Solution, path: Path) -> Path:
+    """Write a solution as npz (for warm starts)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **sol.to_npz_dict())
+    return path

@@ -1,0 +1,430 @@
+"""The backflip NLP (direct transcription) and its hand-designed initial guess.
+
+Time grid: the five phases of :mod:`.config` with a fixed number of intervals each and a duration
+that is a decision variable (uniform step inside a phase). Knots k = 0..N carry the sagittal state
+r_k, rd_k (see :mod:`.sagittal`), an acceleration rdd_k, the pelvis wrench w_k and, at contact
+knots, the heel/toe forces f_k. Integration is trapezoidal collocation with a piecewise-linear
+acceleration (second order; exact for linear acceleration):
+
+    rd_{k+1} = rd_k + h/2 (rdd_k + rdd_{k+1}),   r_{k+1} = r_k + h rd_k + h^2/6 (2 rdd_k + rdd_{k+1})
+
+Full 3-D inverse dynamics at every knot, tau_k = ID(r_k, rd_k, rdd_k, f_k), gives the generalised
+force: its six free-flyer rows must equal w_k (the pelvis wrench, pelvis frame, about the pelvis
+origin), its 29 joint rows are the joint torques, bounded by alpha * effort limit.
+
+Contact: the heel and toe velocities are zero at every stance knot, 0..K_to (take-off) and
+K_td (touch-down)..N, including the knot that closes push-off, so the contact power f . v_sole is
+zero at every knot and contacts can do no work (the prototype's push-off energy leak: a sole fixed by
+position only let the last push-off interval inject energy). The take-off knot carries no force (the
+ground force ramps to zero as the soles leave). Touch-down is soft: the soles arrive at rest.
+A first-order (semi-implicit Euler) scheme was tried first: its per-interval energy error reached
+~100 J at the 0.03-0.09 s steps used here, and the optimiser exploited it; the energy audit caught it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from optimal_control.backflip.config import BackflipConfig
+from optimal_control.backflip.sagittal import NF, NR, SagittalModel
+
+WRENCH_SCALE = np.array([100.0, 100.0, 100.0, 30.0, 30.0, 30.0])
+"""Scale of the pelvis wrench decision variables [N, N, N, Nm, Nm, Nm]."""
+FORCE_SCALE_N = 100.0
+"""Scale of the contact force decision variables [N]."""
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Knot bookkeeping of one configuration."""
+
+    intervals: tuple[int, ...]  # intervals per phase
+    phase_of_interval: np.ndarray  # (N,) phase id of each interval
+    takeoff_knot: int  # first knot of Air (on the ground, no force)
+    touchdown_knot: int  # first knot of Land
+
+    @property
+    def num_intervals(self) -> int:
+        """N, the number of intervals."""
+        return int(sum(self.intervals))
+
+    @property
+    def num_knots(self) -> int:
+        """N + 1."""
+        return self.num_intervals + 1
+
+    def force_knots(self) -> np.ndarray:
+        """Knots carrying contact force: stance intervals before take-off, and all of Land."""
+        n = self.num_knots
+        return np.array([k for k in range(n) if k < self.takeoff_knot or k >= self.touchdown_knot])
+
+    def fixed_sole_knots(self) -> np.ndarray:
+        """Knots whose soles are held on the ground."""
+        n = self.num_knots
+        return np.array([k for k in range(n) if k <= self.takeoff_knot or k >= self.touchdown_knot])
+
+    def phase_of_knot(self) -> np.ndarray:
+        """(N + 1,) phase id of each knot (the last knot belongs to Land)."""
+        return np.append(self.phase_of_interval, self.phase_of_interval[-1])
+
+
+def make_grid(cfg: BackflipConfig) -> Grid:
+    """Knot bookkeeping for ``cfg``."""
+    counts = tuple(p.intervals for p in cfg.phases())
+    phase = np.concatenate([np.full(n, i) for i, n in enumerate(counts)])
+    takeoff = sum(counts[:3])
+    return Grid(counts, phase, takeoff, takeoff + counts[3])
+
+
+@dataclass
+class Solution:
+    """A (candidate) backflip trajectory on the knot grid; arrays indexed by knot.
+
+    r, rd, rdd (N+1, NR); wrench_b (N+1, 6) pelvis wrench in the pelvis frame [N, Nm];
+    force_n (N+1, NF) heel/toe (fx, fz) per foot, zero where no contact; durations_s (5,).
+    """
+
+    r: np.ndarray
+    rd: np.ndarray
+    rdd: np.ndarray
+    wrench_b: np.ndarray
+    force_n: np.ndarray
+    durations_s: np.ndarray
+
+    def dt_per_interval(self, grid: Grid) -> np.ndarray:
+        """(N,) time step of each interval [s]."""
+        steps = self.durations_s / np.asarray(grid.intervals)
+        return steps[grid.phase_of_interval]
+
+    def knot_times_s(self, grid: Grid) -> np.ndarray:
+        """(N + 1,) time of each knot [s]."""
+        return np.concatenate([[0.0], np.cumsum(self.dt_per_interval(grid))])
+
+    def to_npz_dict(self) -> dict[str, np.ndarray]:
+        """Arrays for ``np.savez``."""
+        return {
+            "r": self.r,
+            "rd": self.rd,
+            "rdd": self.rdd,
+            "wrench_b": self.wrench_b,
+            "force_n": self.force_n,
+            "durations_s": self.durations_s,
+        }
+
+    @classmethod
+    def from_npz(cls, data) -> Solution:
+        """Inverse of :meth:`to_npz_dict` (an ``np.load`` result or a dict)."""
+        return cls(**{k: np.asarray(data[k], dtype=float) for k in cls.__dataclass_fields__})
+
+
+@dataclass
+class Transcription:
+    """The NLP of one configuration: solver inputs and packing helpers."""
+
+    cfg: BackflipConfig
+    grid: Grid
+    nlp: dict  # {"x", "f", "g", "p"} SX
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    groups: list[tuple[str, int, int]]  # (constraint group name, start, stop) rows of g
+    unpack: ca.Function  # x -> (r, rd, rdd, w_s, f_s, durations)
+    force_knots: np.ndarray
+    num_params: int
+
+    def pack(self, sol: Solution) -> np.ndarray:
+        """Decision vector x of a :class:`Solution`."""
+        fk = self.force_knots
+        return np.concatenate(
+            [
+                sol.r.ravel(),
+                sol.rd.ravel(),
+                sol.rdd.ravel(),
+                (sol.wrench_b / WRENCH_SCALE).ravel(),
+                (sol.force_n[fk] / FORCE_SCALE_N).ravel(),
+                sol.durations_s,
+            ]
+        )
+
+    def solution(self, x: np.ndarray) -> Solution:
+        """:class:`Solution` of a decision vector x."""
+        r, rd, rdd, w_s, f_s, dur = (np.asarray(a) for a in self.unpack(x))
+        n = self.grid.num_knots
+        force = np.zeros((n, NF))
+        force[self.force_knots] = f_s.T * FORCE_SCALE_N
+        return Solution(
+            r.T.copy(),
+            rd.T.copy(),
+            rdd.T.copy(),
+            w_s.T * WRENCH_SCALE,
+            force,
+            dur.ravel(),
+        )
+
+
+def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcription:
+    """Build the NLP of ``cfg``; its parameter p (1,) is the pelvis-wrench weight."""
+    cfg.validate()
+    grid = make_grid(cfg)
+    phases = cfg.phases()
+    n = grid.num_knots
+    fk = grid.force_knots()
+    r = ca.SX.sym("r", NR, n)
+    rd = ca.SX.sym("rd", NR, n)
+    rdd = ca.SX.sym("rdd", NR, n)
+    w_s = ca.SX.sym("w", 6, n)
+    f_s = ca.SX.sym("f", NF, len(fk))
+    dur = ca.SX.sym("T", len(phases))
+    weight_w = ca.SX.sym("weight_w")
+    x = ca.vertcat(
+        ca.vec(r),
+        ca.vec(rd),
+        ca.vec(rdd),
+        ca.vec(w_s),
+        ca.vec(f_s),
+        dur,
+    )
+    # note: ca.vec is column-major, so knot k's r is x[k*NR:(k+1)*NR]: matches (n, NR).ravel()
+    unpack = ca.Function("unpack", [x], [r, rd, rdd, w_s, f_s, dur])
+
+    g_rows: list[ca.SX] = []
+    lbg: list[np.ndarray] = []
+    ubg: list[np.ndarray] = []
+    groups: list[tuple[str, int, int]] = []
+    count = [0]
+
+    def add(name: str, expr: ca.SX, lo, hi) -> None:
+        expr = ca.vec(expr)
+        size = expr.shape[0]
+        g_rows.append(expr)
+        lbg.append(np.broadcast_to(np.asarray(lo, dtype=float), (size,)).copy())
+        ubg.append(np.broadcast_to(np.asarray(hi, dtype=float), (size,)).copy())
+        groups.append((name, count[0], count[0] + size))
+        count[0] += size
+
+    alpha = cfg.torque_scale
+    effort = model.effort_limit_nm
+    stand = model.r_stand()
+    p_stand = np.asarray(model.sole_points(stand))
+    force_index = {int(k): i for i, k in enumerate(fk)}
+    dts = [
+        dur[grid.phase_of_interval[k]] / grid.intervals[grid.phase_of_interval[k]]
+        for k in range(n - 1)
+    ]
+
+    cost = 0.0
+    dyn_rows, torque_rows, integ_rows = [], [], []
+    for k in range(n):
+        f_k = f_s[:, force_index[k]] * FORCE_SCALE_N if k in force_index else ca.SX.zeros(NF)
+        tau = model.inverse_dynamics(r[:, k], rd[:, k], rdd[:, k], f_k)
+        dyn_rows.append((tau[0:6] - w_s[:, k] * WRENCH_SCALE) / WRENCH_SCALE)
+        torque_rows.append(tau[6:] / effort)
+        dt_cost = dts[min(k, n - 2)]
+        cost += weight_w * dt_cost * ca.sumsqr(w_s[:, k])
+        cost += cfg.torque_weight * dt_cost * ca.sumsqr(tau[6:] / effort)
+        cost += cfg.acceleration_weight * dt_cost * ca.sumsqr(rdd[3:, k])
+        if k < n - 1:
+            h = dts[k]
+            integ_rows.append(rd[:, k + 1] - rd[:, k] - h / 2 * (rdd[:, k] + rdd[:, k + 1]))
+            integ_rows.append(
+                r[:, k + 1] - r[:, k] - h * rd[:, k] - h**2 / 6 * (2 * rdd[:, k] + rdd[:, k + 1])
+            )
+    add("inverse dynamics (base rows = pelvis wrench)", ca.vertcat(*dyn_rows), 0.0, 0.0)
+    add("torque limits alpha*tau_max", ca.vertcat(*torque_rows), -alpha, alpha)
+    add("integration (trapezoidal, linear acceleration)", ca.vertcat(*integ_rows), 0.0, 0.0)
+
+    # contact: friction pyramid and unilateral normal force at each heel/toe point
+    mu = cfg.friction_coefficient
+    fx, fz = f_s[0::2, :], f_s[1::2, :]
+    add("unilateral contact and friction cone", ca.vertcat(fz - fx / mu, fz + fx / mu), 0.0, np.inf)
+
+    # soles: placed at the start (3 independent coordinates of the rigid sole: heel x, z; toe z),
+    # flat on the floor at touch-down, and at rest (zero heel/toe velocity) at every stance knot
+    sole_rows = []
+    pts0 = model.sole_points(r[:, 0])
+    sole_rows.append(
+        ca.vertcat(
+            pts0[0, 0] - p_stand[0, 0], pts0[2, 0] - p_stand[2, 0], pts0[2, 1] - p_stand[2, 1]
+        )
+    )
+    pts_td = model.sole_points(r[:, grid.touchdown_knot])
+    sole_rows.append(ca.vertcat(pts_td[2, 0], pts_td[2, 1]))
+    add("sole placement at start and touch-down", ca.vertcat(*sole_rows), 0.0, 0.0)
+    vel_rows = []
+    for k in grid.fixed_sole_knots():
+        vel = model.sole_points_velocity(r[:, k], rd[:, k])
+        vel_rows.append(ca.vertcat(vel[0, 0], vel[2, 0], vel[2, 1]))
+    add(
+        "stance soles at rest (no slip, no energy through contacts)",
+        ca.vertcat(*vel_rows),
+        0.0,
+        0.0,
+    )
+    # the velocity rows leave a second-order drift of the sole between knots: keep it within a band
+    band = cfg.sole_drift_tolerance_m
+    drift_rows, drift_lo, drift_hi = [], [], []
+    for k in grid.fixed_sole_knots():
+        pts = model.sole_points(r[:, k])
+        landed = k > grid.takeoff_knot
+        ref = model.sole_points(r[:, grid.touchdown_knot]) if landed else p_stand
+        ref_z = ca.SX.zeros(2) if landed else p_stand[2, :]
+        drift_rows.append(
+            ca.vertcat(pts[0, 0] - ref[0, 0], pts[2, 0] - ref_z[0], pts[2, 1] - ref_z[1])
+        )
+        drift_lo.append([-band, 0.0, 0.0] if landed else [-band, -band, -band])
+        drift_hi.append([band, band, band])
+    add(
+        "stance sole drift within the band",
+        ca.vertcat(*drift_rows),
+        np.concatenate(drift_lo),
+        np.concatenate(drift_hi),
+    )
+
+    air = range(grid.takeoff_knot + 1, grid.touchdown_knot)
+    clear = [model.sole_points(r[:, k])[2, :].T for k in air]
+    add("no sole penetration in the air", ca.vertcat(*clear), cfg.min_air_sole_height_m, np.inf)
+    add(
+        "pelvis clearance in the air",
+        ca.vertcat(*[r[1, k] for k in air]),
+        cfg.min_air_pelvis_height_m,
+        np.inf,
+    )
+
+    # boundary conditions: start at the stand pose at rest, land upright after a full turn at rest
+    add("start at rest in the stand pose", ca.vertcat(r[:, 0] - stand, rd[:, 0]), 0.0, 0.0)
+    final = ca.vertcat(rd[:, n - 1], rdd[:, n - 1], r[2, n - 1] + 2 * np.pi)
+    add("land upright after -2*pi pitch, at rest", final, 0.0, 0.0)
+    tol = cfg.final_joint_tolerance_rad
+    add("landed joints near the stand pose", r[3:, n - 1] - stand[3:], -tol, tol)
+
+    # variable bounds
+    inf = np.inf
+    lb_r = np.tile(np.where(np.isfinite(model.lower_r), model.lower_r, -inf), (n, 1))
+    ub_r = np.tile(np.where(np.isfinite(model.upper_r), model.upper_r, inf), (n, 1))
+    lb_r[:, 2], ub_r[:, 2] = -2 * np.pi - 1.0, 1.0
+    vel = np.where(np.isfinite(model.velocity_limit), model.velocity_limit, inf)
+    lb_rd, ub_rd = np.tile(-vel, (n, 1)), np.tile(vel, (n, 1))
+    lb_rdd, ub_rdd = np.full((n, NR), -inf), np.full((n, NR), inf)
+    w_hi = np.array([cfg.max_wrench_force_n] * 3 + [cfg.max_wrench_torque_nm] * 3) / WRENCH_SCALE
+    if cfg.forbid_wrench:
+        w_hi = np.zeros(6)
+    lb_w, ub_w = np.tile(-w_hi, (n, 1)), np.tile(w_hi, (n, 1))
+    lb_f = np.tile([-inf, 0.0], (len(fk), NF // 2))
+    ub_f = np.full((len(fk), NF), inf)
+    lb_t = np.array([p.min_duration_s for p in phases])
+    ub_t = np.array([p.max_duration_s for p in phases])
+    lbx = np.concatenate(
+        [lb_r.ravel(), lb_rd.ravel(), lb_rdd.ravel(), lb_w.ravel(), lb_f.ravel(), lb_t]
+    )
+    ubx = np.concatenate(
+        [ub_r.ravel(), ub_rd.ravel(), ub_rdd.ravel(), ub_w.ravel(), ub_f.ravel(), ub_t]
+    )
+    return Transcription(
+        cfg=cfg,
+        grid=grid,
+        nlp={"x": x, "f": cost, "g": ca.vertcat(*g_rows), "p": weight_w},
+        lbx=lbx,
+        ubx=ubx,
+        lbg=np.concatenate(lbg),
+        ubg=np.concatenate(ubg),
+        groups=groups,
+        unpack=unpack,
+        force_knots=fk,
+        num_params=1,
+    )
+
+
+# ---------------------------------------------------------------- initial guess
+
+# key poses of the moved joints (hip, knee, ankle, waist, shoulder, elbow pitch) [rad]
+_CROUCH = np.array([-1.2, 2.0, -0.8, 0.2, 0.8, 0.3])
+_TAKEOFF = np.array([-0.1, 0.1, 0.3, -0.2, -2.5, 0.2])
+_TUCK = np.array([-2.2, 2.5, -0.3, 0.4, -1.0, 1.2])
+_LAND = np.array([-0.9, 1.6, -0.7, 0.2, 0.5, 0.6])
+
+
+def _stance_base_solver(model: SagittalModel, target: np.ndarray):
+    """Newton solver: joints (6,) -> base (x, z, pitch) putting the left sole on ``target``."""
+    base = ca.SX.sym("base", 3)
+    joints = ca.SX.sym("joints", NR - 3)
+    pts = model.sole_points(ca.vertcat(base, joints))
+    res = ca.vertcat(pts[0, 0] - target[0, 0], pts[2, 0] - target[2, 0], pts[2, 1] - target[2, 1])
+    fn = ca.Function("stance_residual", [base, joints], [res, ca.jacobian(res, base)])
+
+    def solve(joint_pos: np.ndarray) -> np.ndarray:
+        b = np.array([0.0, 0.7, 0.0])
+        for _ in range(30):
+            res_b, jac_b = fn(b, joint_pos)
+            step = np.linalg.solve(np.asarray(jac_b), np.asarray(res_b).ravel())
+            b = b - step
+            if np.abs(step).max() < 1e-12:
+                break
+        return b
+
+    return solve
+
+
+def _blend(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
+    s = 0.5 - 0.5 * np.cos(np.pi * np.clip(s, 0.0, 1.0))
+    return a[None, :] + s[:, None] * (b - a)[None, :]
+
+
+def initial_guess(model: SagittalModel, cfg: BackflipConfig) -> Solution:
+    """A hand-designed kinematic flip: crouch, extend, tuck and turn -2 pi on a ballistic arc, land.
+
+    Stance knots are placed with the soles exactly on the ground; velocities and accelerations are
+    the finite differences of the semi-implicit scheme; forces carry the weight; w is what the
+    guess's inverse dynamics leaves on the base rows (clipped to its bounds).
+    """
+    grid = make_grid(cfg)
+    phases = cfg.phases()
+    durations = np.array([p.guess_duration_s for p in phases])
+    n = grid.num_knots
+    stand = model.r_stand()
+    p_stand = np.asarray(model.sole_points(stand))
+    counts = grid.intervals
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    joints = np.zeros((n, NR - 3))
+    s = lambda i: np.linspace(0.0, 1.0, counts[i] + 1)  # noqa: E731
+    j_stand = stand[3:]
+    joints[starts[0] : starts[1] + 1] = j_stand
+    joints[starts[1] : starts[2] + 1] = _blend(j_stand, _CROUCH, s(1))
+    joints[starts[2] : starts[3] + 1] = _blend(_CROUCH, _TAKEOFF, s(2))
+    air = s(3)
+    first = air <= 0.4
+    joints[starts[3] : starts[4] + 1][first] = _blend(_TAKEOFF, _TUCK, air[first] / 0.4)
+    joints[starts[3] : starts[4] + 1][~first] = _blend(_TUCK, _LAND, (air[~first] - 0.4) / 0.6)
+    joints[starts[4] : starts[5] + 1] = _blend(_LAND, j_stand, s(4))
+    r = np.zeros((n, NR))
+    r[:, 3:] = joints
+    place_base = _stance_base_solver(model, p_stand)
+    for k in grid.fixed_sole_knots():
+        r[k, :3] = place_base(joints[k])
+        if k > grid.takeoff_knot:
+            r[k, 2] -= 2 * np.pi  # landed after a full backward turn
+    # ballistic base arc through the air, pitch turning uniformly
+    k0, k1 = grid.takeoff_knot, grid.touchdown_knot
+    t_air = durations[3]
+    tt = np.linspace(0.0, t_air, k1 - k0 + 1)
+    z0, z1 = r[k0, 1], r[k1, 1]
+    vz0 = (z1 - z0) / t_air + 0.5 * 9.81 * t_air
+    r[k0 : k1 + 1, 1] = z0 + vz0 * tt - 0.5 * 9.81 * tt**2
+    r[k0 : k1 + 1, 0] = np.linspace(r[k0, 0], r[k1, 0], k1 - k0 + 1)
+    r[k0 : k1 + 1, 2] = np.linspace(r[k0, 2], r[k1, 2], k1 - k0 + 1)
+    r[k0 : k1 + 1, 3:] = joints[k0 : k1 + 1]
+    dt = (durations / np.asarray(counts))[grid.phase_of_interval]
+    rd = np.zeros((n, NR))
+    rd[1:] = np.diff(r, axis=0) / dt[:, None]
+    rdd = np.zeros((n, NR))
+    rdd[:-1] = np.diff(rd, axis=0) / dt[:, None]
+    force = np.zeros((n, NF))
+    weight_n = model.dyn.total_mass_kg * 9.81
+    force[grid.force_knots(), 1::2] = weight_n / 4.0
+    tau = np.asarray(model.inverse_dynamics.map(n)(r.T, rd.T, rdd.T, force.T)).T
+    w_hi = np.array([cfg.max_wrench_force_n] * 3 + [cfg.max_wrench_torque_nm] * 3)
+    wrench = np.clip(tau[:, :6], -w_hi, w_hi)
+    return Solution(r, rd, rdd, wrench, force, durations)
