@@ -70,7 +70,8 @@ class PPOConfig:
     entropy_coef: float = 0.005  # weight of the entropy bonus [-]
     max_grad_norm: float = 1.0  # gradient-norm clip [-]
     desired_kl: float = 0.01  # target KL of the adaptive learning-rate schedule [-]
-    init_noise_std: float = 1.0  # initial action std (raw action units) [-]
+    init_noise_std: float = 0.5  # initial std of the motion actions (raw action units) [-]
+    assist_init_noise_std: float = 1.0  # initial std of the raw assist actions (before tanh) [-]
 
 
 @dataclass(frozen=True)
@@ -168,6 +169,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
     )
     ppo = asdict(cfg.ppo)
     init_noise_std = ppo.pop("init_noise_std")
+    assist_init_std = ppo.pop("assist_init_noise_std")
     return {
         "num_steps_per_env": cfg.num_steps_per_env,
         "save_interval": cfg.save_interval,
@@ -190,6 +192,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
             "obs_normalization": True,
             "assist_privileged": mode.assist_privileged,
             "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": init_noise_std},
+            "assist_init_std": assist_init_std if mode.assist else None,
         },
         "critic": {
             "class_name": "MLPModel",

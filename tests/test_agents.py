@@ -117,8 +117,8 @@ def test_vae_learns_velocity_and_next_observation() -> None:
         opt.zero_grad()
         parts["total"].backward()
         opt.step()
-    assert float(parts["velocity"]) < 0.2 * first["velocity"]
-    assert float(parts["reconstruction"]) < 0.5 * first["reconstruction"]
+    assert float(parts["velocity"].detach()) < 0.2 * first["velocity"]
+    assert float(parts["reconstruction"].detach()) < 0.5 * first["reconstruction"]
 
 
 def fill_storage(alg: A2CFPPO, steps: int) -> None:
@@ -175,3 +175,18 @@ def test_onnx_export_matches_torch(tmp_path) -> None:
         torch.from_numpy(onnx_actions), actor(obs)[:, :29].detach(), atol=1e-5, rtol=1e-5
     )
     assert (tmp_path / "policy.json").is_file()
+
+
+def test_assist_dimensions_get_their_own_initial_std() -> None:
+    actor = A2CFActor(
+        make_obs(),
+        {"actor": ["policy", "history", "privileged"]},
+        "actor",
+        35,
+        distribution_cfg={"class_name": "GaussianDistribution", "init_std": 0.5},
+        assist_init_std=1.5,
+    )
+    actor(make_obs(), stochastic_output=True)
+    std = actor.output_std[0]
+    torch.testing.assert_close(std[:29], torch.full((29,), 0.5))
+    torch.testing.assert_close(std[29:], torch.full((6,), 1.5))

@@ -17,6 +17,7 @@ The critic is rsl-rl's plain :class:`~rsl_rl.models.MLPModel` on the full-state 
 from __future__ import annotations
 
 import copy
+import math
 
 import torch
 from rsl_rl.models import MLPModel
@@ -90,6 +91,9 @@ class A2CFActor(MLPModel):
         obs_normalization: empirical normalisation of the policy and privileged observations.
         assist_privileged: the assist head reads the privileged group (False: ablation ``no-pi``).
         distribution_cfg: rsl-rl distribution config (Gaussian over the whole joint action).
+        assist_init_std: initial std of the 6 assist dimensions (None: the distribution's
+            ``init_std`` for all). The applied wrench is ``eta * tanh(raw)``: a small std makes the
+            early wrench small, and Algorithm 1 then shrinks the bound before the head learns.
         policy_group / history_group / privileged_group: names of the env's observation groups.
     """
 
@@ -108,6 +112,7 @@ class A2CFActor(MLPModel):
         obs_normalization: bool = True,
         assist_privileged: bool = True,
         distribution_cfg: dict | None = None,
+        assist_init_std: float | None = None,
         policy_group: str = "policy",
         history_group: str = "history",
         privileged_group: str = "privileged",
@@ -194,6 +199,22 @@ class A2CFActor(MLPModel):
         )
         if self.distribution is not None:
             self.distribution.init_mlp_weights(self.mlp)
+        if has_assist and assist_init_std is not None:
+            self._set_assist_std(assist_init_std)
+
+    def _set_assist_std(self, std: float) -> None:
+        """Initial std of the assist dimensions of a state-independent Gaussian."""
+        if std <= 0:
+            raise ValueError(f"assist_init_std must be > 0, got {std}")
+        with torch.no_grad():
+            if hasattr(self.distribution, "std_param"):
+                self.distribution.std_param[self.num_motion_actions :] = std
+            elif hasattr(self.distribution, "log_std_param"):
+                self.distribution.log_std_param[self.num_motion_actions :] = math.log(std)
+            else:
+                raise ValueError(
+                    "assist_init_std needs rsl-rl's GaussianDistribution (state-independent std)"
+                )
 
     def normalized_history(self, history: torch.Tensor) -> torch.Tensor:
         """Normalise each of the ``H`` stacked observations, shape kept (..., H * P)."""
