@@ -101,7 +101,7 @@ def test_replayed_physics_matches_the_batched_step():
     data = mujoco.MjData(env.model)
     for i in range(4):
         mujoco.mj_setState(env.model, data, state_before[i], STATE_SPEC)
-        mujoco.mj_setState(env.model, data, env._control[i, 0], CONTROL_SPEC)
+        mujoco.mj_setState(env.model, data, env.control[i, 0], CONTROL_SPEC)
         np.testing.assert_allclose(pelvis_xfrc(env, data), expected[i].double().numpy(), rtol=1e-6)
         targets = g1.STAND_JOINT_POS_RAD + g1.ACTION_SCALE_RAD * actions[i, :29].double().numpy()
         np.testing.assert_allclose(data.ctrl, targets, atol=1e-6)

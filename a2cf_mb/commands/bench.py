@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 
-BENCHMARK_MODULES: tuple[str, ...] = ("a2cf_mb.bench.sim",)
+BENCHMARK_MODULES: tuple[str, ...] = ("a2cf_mb.bench.sim", "a2cf_mb.bench.env")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

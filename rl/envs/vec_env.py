@@ -76,12 +76,12 @@ class G1VecEnv(VecEnv):
 
         # Batch buffers (numpy) and torch views of the same memory.
         self.state = np.tile(lay.stand_state, (n, 1))
-        self._control = np.zeros((n, cfg.decimation, lay.ncontrol))
+        self.control = np.zeros((n, cfg.decimation, lay.ncontrol))
         self._state_out = np.zeros((n, cfg.decimation, lay.nstate))
         self._sensor_out = np.zeros((n, cfg.decimation, lay.nsensordata))
         self.sensordata = np.zeros((n, lay.nsensordata))
         self._state_t = torch.from_numpy(self.state)
-        self._control_t = torch.from_numpy(self._control)
+        self._control_t = torch.from_numpy(self.control)
         self._sensor_t = torch.from_numpy(self.sensordata)
 
         self._stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
@@ -165,7 +165,7 @@ class G1VecEnv(VecEnv):
             self.models,
             self.physics_datas,
             self.state,
-            self._control,
+            self.control,
             control_spec=int(CONTROL_SPEC),
             skip_checks=True,
             nstep=cfg.decimation,

@@ -1,0 +1,193 @@
+"""``a2cf-mb bench env``: env steps per second of :class:`rl.envs.G1VecEnv` against the physics alone.
+
+For each batch size N the same run measures, interleaved and best of ``repeats``:
+- ``env``: ``G1VecEnv.step`` with random actions (motion and assist), everything included:
+  wrench bound and mask, pushes, divergence checks, rewards, terminations, resets with domain
+  randomisation, all observation groups;
+- ``physics``: the env's physics alone: the ``Rollout`` calls the env made in a recorded stretch of
+  the same run (same per-env models, thread pool, decimation, states and controls), replayed
+  without anything else; the physics-only rate for this N, threads and decimation;
+- ``sim``: ``bench sim``'s rollout measurement (:func:`a2cf_mb.bench.sim._rollout_rate`) on the
+  env's model, one long rollout of N robots holding the stand targets (no Python round trip).
+Reported as env steps/s (policy steps of all envs per second) and the ratios env / physics and
+env / sim.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import torch
+from mujoco import rollout
+
+from a2cf_mb.bench.sim import SimBenchConfig, _rollout_rate
+from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from rl.envs import G1VecEnv, make_env
+from rl.envs.model import CONTROL_SPEC
+from robots import g1
+
+
+@dataclass(frozen=True)
+class EnvBenchConfig:
+    """Sizes of the env benchmark."""
+
+    num_envs: tuple[int, ...] = (64, 512)  # batch sizes to measure [-]
+    num_steps: int = 100  # policy steps per measurement [-]
+    warmup_steps: int = 10  # policy steps before measuring [-]
+    repeats: int = 3  # measurements per case, best kept [-]
+    num_threads: int = 0  # physics threads; 0 = all cores [-]
+    task: str = "stand"  # registered task of the env
+    action_std: float = 0.5  # std of the random actions [-]
+    seed: int = 0  # random seed [-]
+    output: str = ""  # optional json file for the figures
+
+
+CHUNK = 5
+"""Policy steps per alternating timing chunk."""
+
+
+def _random_actions(env: G1VecEnv, cfg: EnvBenchConfig, generator: torch.Generator) -> torch.Tensor:
+    return cfg.action_std * torch.randn(env.num_envs, env.num_actions, generator=generator)
+
+
+def _record(env: G1VecEnv, cfg: EnvBenchConfig, generator: torch.Generator):
+    """Run the env untimed and keep the physics inputs of every step: state and control rows."""
+    states, controls = [], []
+    for _ in range(cfg.num_steps):
+        states.append(env.state.copy())
+        env.step(_random_actions(env, cfg, generator))
+        controls.append(env.control.copy())
+    return states, controls
+
+
+def _time_env(env: G1VecEnv, actions: list[torch.Tensor]) -> float:
+    """Seconds for ``env.step`` over the given actions."""
+    start = time.perf_counter()
+    for a in actions:
+        env.step(a)
+    return time.perf_counter() - start
+
+
+def _time_physics(env: G1VecEnv, runner: rollout.Rollout, datas, states, controls) -> float:
+    """Seconds for replaying recorded physics calls alone (same models, threads, decimation,
+    states and controls as the env used)."""
+    lay, n, dec = env.layout, env.num_envs, env.cfg.decimation
+    state_out = np.zeros((n, dec, lay.nstate))
+    sensor_out = np.zeros((n, dec, lay.nsensordata))
+    start = time.perf_counter()
+    for state, control in zip(states, controls, strict=True):
+        runner.rollout(
+            env.models,
+            datas,
+            state,
+            control,
+            control_spec=int(CONTROL_SPEC),
+            skip_checks=True,
+            nstep=dec,
+            initial_warmstart=None,
+            state=state_out,
+            sensordata=sensor_out,
+            chunk_size=None,
+        )
+    return time.perf_counter() - start
+
+
+def measure_size(num_envs: int, cfg: EnvBenchConfig) -> dict:
+    """Figures for one batch size.
+
+    Env and physics are timed in alternating chunks of ``CHUNK`` steps, so the load of other
+    processes on this shared machine hits both alike; each repeat gives one rate per side and the
+    best repeat of each is reported.
+    """
+    env = make_env(cfg.task, num_envs, num_threads=cfg.num_threads, seed=cfg.seed)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    for _ in range(cfg.warmup_steps):
+        env.step(_random_actions(env, cfg, generator))
+    states, controls = _record(env, cfg, generator)
+    datas = [mujoco.MjData(env.model) for _ in range(env.num_threads)]
+    env_rate = physics = 0.0
+    ratios = []
+    with rollout.Rollout(nthread=env.num_threads) as runner:
+        _time_physics(env, runner, datas, states[:CHUNK], controls[:CHUNK])
+        for _ in range(cfg.repeats):
+            env_s = physics_s = 0.0
+            for c in range(0, cfg.num_steps, CHUNK):
+                actions = [_random_actions(env, cfg, generator) for _ in states[c : c + CHUNK]]
+                env_s += _time_env(env, actions)
+                physics_s += _time_physics(
+                    env, runner, datas, states[c : c + CHUNK], controls[c : c + CHUNK]
+                )
+            env_rate = max(env_rate, num_envs * cfg.num_steps / env_s)
+            physics = max(physics, num_envs * cfg.num_steps / physics_s)
+            ratios.append(physics_s / env_s)
+    dec = env.cfg.decimation
+    # bench sim's measurement on the env's model: one long rollout holding the stand targets.
+    ctrl = np.broadcast_to(g1.STAND_JOINT_POS_RAD, (num_envs, 200, g1.NUM_JOINTS)).copy()
+    ceiling = _rollout_rate(
+        env.model,
+        ctrl,
+        env.num_threads,
+        SimBenchConfig(num_rollouts=num_envs, num_steps=200, repeats=cfg.repeats),
+    )
+    figures = {
+        "threads": env.num_threads,
+        "env_steps_per_s": env_rate,
+        "physics_env_steps_per_s": physics,
+        "sim_ceiling_env_steps_per_s": ceiling / dec,
+        "env_over_physics": float(np.median(ratios)),
+        "env_over_sim_ceiling": env_rate * dec / ceiling,
+        "diverged_envs": env.diverged_total,
+    }
+    env.close()
+    return figures
+
+
+def run_env_benchmark(cfg: EnvBenchConfig = EnvBenchConfig()) -> dict:
+    """Measure env and physics-only rates for each batch size; return the figures."""
+    results: dict = {
+        "config": dataclasses.asdict(cfg),
+        "mujoco": mujoco.__version__,
+        "torch_threads": torch.get_num_threads(),
+        "sizes": {str(n): measure_size(n, cfg) for n in cfg.num_envs},
+    }
+    results["threads"] = next(iter(results["sizes"].values()))["threads"]
+    return results
+
+
+def format_results(results: dict) -> str:
+    """A short table of the figures."""
+    lines = [
+        f"G1VecEnv ({results['config']['task']}), MuJoCo {results['mujoco']}, "
+        f"{results['threads']} physics thread(s), policy steps of all envs per second:",
+        f"  {'N':>5} {'env':>9} {'physics':>9} {'sim':>9}  env/physics  env/sim",
+    ]
+    for n, r in results["sizes"].items():
+        lines.append(
+            f"  {n:>5} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "
+            f"{r['sim_ceiling_env_steps_per_s']:>9.0f}  {r['env_over_physics']:>11.2f}  "
+            f"{r['env_over_sim_ceiling']:>7.2f}"
+        )
+    return "\n".join(lines)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``bench env``."""
+    parser = subparsers.add_parser("env", help="G1VecEnv steps/s vs the physics alone")
+    add_config_arguments(parser, EnvBenchConfig)
+    parser.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    cfg = config_from_args(EnvBenchConfig, args)
+    results = run_env_benchmark(cfg)
+    print(format_results(results))
+    if cfg.output:
+        Path(cfg.output).write_text(json.dumps(results, indent=2))
+    return 0
