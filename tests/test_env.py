@@ -121,6 +121,16 @@ def test_time_outs_at_max_episode_length():
     assert extras["skill_progress"] == pytest.approx(1.0 / env.task.cfg.target_survival)
 
 
+def test_time_outs_of_shortened_episodes_do_not_count_as_survival():
+    """Runners start episode_length_buf at random values: those first episodes time out early
+    and must not look like a learned skill."""
+    env = quiet_env(episode_length_s=0.2)
+    env.episode_length_buf = torch.full_like(env.episode_length_buf, env.max_episode_length - 1)
+    _, _, dones, extras = env.step(zero_actions(env))
+    assert extras["time_outs"].all() and dones.all()
+    assert extras["skill_progress"] == 0.0
+
+
 def test_nan_state_is_detected_reset_and_counted():
     env = quiet_env()
     env.step(zero_actions(env))

@@ -63,6 +63,8 @@ class G1VecEnv(VecEnv):
         self.step_dt_s = self.physics_dt_s * cfg.decimation
         self.max_episode_length = math.ceil(cfg.episode_length_s / self.step_dt_s)
         self.episode_length_buf = torch.zeros(n, dtype=torch.long)
+        # Steps since each env's actual reset; runners may overwrite episode_length_buf.
+        self._lived_steps = torch.zeros(n, dtype=torch.long)
         self.total_mass_kg = float(self.model.body_subtreemass[0])
 
         self._randomizer = ModelRandomizer.for_model(self.model, cfg.payload_body)
@@ -95,7 +97,7 @@ class G1VecEnv(VecEnv):
         self._push_timer_s = torch.zeros(n)
         self.diverged_total = 0
 
-        task.bind(n, self.generator)
+        task.bind(n, self.generator, self.max_episode_length)
         self.assist = AssistState(
             task.default_assist_bound(),
             cfg.assist_enabled,
@@ -185,6 +187,7 @@ class G1VecEnv(VecEnv):
             self.diverged_total += num_diverged
 
         self.episode_length_buf += 1
+        self._lived_steps += 1
         state = self._read_state()
         self.env_state = state
         terminated = self.task.terminated(state) | diverged
@@ -207,7 +210,7 @@ class G1VecEnv(VecEnv):
 
         done_ids = dones.nonzero().flatten()
         if done_ids.numel():
-            self.task.on_episodes_end(done_ids, time_outs[done_ids])
+            self.task.on_episodes_end(done_ids, time_outs[done_ids], self._lived_steps[done_ids])
         self.last_action = self.action.clone()
         if done_ids.numel():
             self._reset_envs(done_ids)
@@ -297,6 +300,7 @@ class G1VecEnv(VecEnv):
         self._refresh_sensors(env_ids)
 
         self.episode_length_buf[env_ids] = 0
+        self._lived_steps[env_ids] = 0
         self.action[env_ids] = 0.0
         self.last_action[env_ids] = 0.0
         self.applied_wrench[env_ids] = 0.0

@@ -48,10 +48,14 @@ class Task(ABC):
         """Number of phases (>= 1)."""
         return len(self.phase_names)
 
-    def bind(self, num_envs: int, generator: torch.Generator) -> None:
-        """Allocate per-env task buffers; called once by the env before its first reset."""
+    def bind(self, num_envs: int, generator: torch.Generator, max_episode_length: int) -> None:
+        """Allocate per-env task buffers; called once by the env before its first reset.
+
+        ``max_episode_length`` is the episode length [policy steps] of a full episode.
+        """
         self.num_envs = num_envs
         self.generator = generator
+        self.max_episode_length = max_episode_length
 
     @abstractmethod
     def default_assist_bound(self) -> torch.Tensor:
@@ -80,8 +84,13 @@ class Task(ABC):
     def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
         """Resample per-env task state (commands, phase timers) for ``env_ids`` (M,)."""
 
-    def on_episodes_end(self, env_ids: torch.Tensor, time_outs: torch.Tensor) -> None:  # noqa: B027
-        """Record finished episodes: ``env_ids`` (M,), ``time_outs`` (M,) bool (True: survived)."""
+    def on_episodes_end(  # noqa: B027 - optional hook
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+    ) -> None:
+        """Record finished episodes: ``env_ids`` (M,), ``time_outs`` (M,) bool (True: ended by
+        the time limit, not by failure), ``lived_steps`` (M,) long: policy steps since the env's
+        actual reset (runners may shorten first episodes by starting ``episode_length_buf`` at
+        random values; those time out early without having survived a full episode)."""
 
     @abstractmethod
     def skill_progress(self) -> float:

@@ -109,9 +109,15 @@ class StandTask(Task):
         too_tilted = -state.projected_gravity_b[:, 2] < self._cos_max_tilt
         return too_low | too_tilted
 
-    def on_episodes_end(self, env_ids: torch.Tensor, time_outs: torch.Tensor) -> None:
-        """Push survived (1) / fell (0) flags into the progress window."""
-        flags = time_outs.to(torch.float32).flatten()[-self._window.numel() :]
+    def on_episodes_end(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+    ) -> None:
+        """Push survived (1) / fell (0) flags into the progress window; episodes cut short by
+        a time limit without having lived a full episode say nothing and are skipped."""
+        fell = ~time_outs
+        survived = time_outs & (lived_steps >= self.max_episode_length)
+        counted = fell | survived
+        flags = survived[counted].to(torch.float32)[-self._window.numel() :]
         n = flags.numel()
         if n == 0:
             return
