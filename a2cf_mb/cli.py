@@ -15,6 +15,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.bench",
     "a2cf_mb.commands.train",
     "a2cf_mb.commands.eval",
+    "a2cf_mb.commands.solve_walk",
+    "a2cf_mb.commands.solve_dance",
 )
 
 

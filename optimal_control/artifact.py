@@ -125,10 +125,14 @@ class OracleArtifact:
         sweep = {}
         for alpha in sorted(self.profiles, reverse=True):
             prof = self.profiles[alpha]
-            env = envelope_per_phase(prof.wrench_w, self.reference.phase, num_phases)
+            ok = prof.solved
+            env = envelope_per_phase(prof.wrench_w[ok], self.reference.phase[ok], num_phases)
             sweep[f"{alpha:.2f}"] = {
                 "solver": prof.stats(),
                 "envelope": {k: np.nan_to_num(v).tolist() for k, v in env.items()},
+                "unsolved_frames_per_phase": [
+                    int(np.sum(~prof.solved[self.reference.phase == p])) for p in range(num_phases)
+                ],
                 "unaided_fraction_per_phase": [
                     float(prof.unaided[self.reference.phase == p].mean())
                     if np.any(self.reference.phase == p)
@@ -380,5 +384,7 @@ def build_artifact(
         extra_arrays=extra_arrays or {},
     )
     novice = art.novice_profile
-    art.eta0 = eta0_per_phase(novice.wrench_w, reference.phase, len(reference.phase_names), rule)
+    art.eta0 = eta0_per_phase(
+        novice.wrench_w, reference.phase, len(reference.phase_names), rule, valid=novice.solved
+    )
     return art.validate()

@@ -9,7 +9,9 @@ Rule ``percentile_margin`` (the default, :class:`BoundRule`)::
 
     eta0[p, i] = max(floor_i, margin * percentile_P(|w_i(t)| for frames t of phase p))
 
-with ``floor_i`` = ``floor_force_n`` for the force axes and ``floor_torque_nm`` for the torque axes.
+with ``floor_i`` = ``floor_force_n`` for the force axes and ``floor_torque_nm`` for the torque axes,
+over the frames where the QP converged (a frame the novice cannot do even with help, because a
+limb lacks torque, has no meaningful wrench; the artifact counts such frames per phase).
 The floor keeps a little room on axes the envelope says are never needed (a learner deviates from
 the reference), the margin covers the learner's deviation on axes that are needed. A phase with no
 frame gets the floor. The rule's name and parameters are stored in every artifact.
@@ -47,7 +49,7 @@ class BoundRule:
     """The eta0 rule: a margin times a percentile of |w| per phase and axis, with a floor."""
 
     name: str = "percentile_margin"  # rule identifier stored in the artifact
-    percentile: float = 95.0  # percentile of |w_axis| over the frames of a phase [%]
+    percentile: float = 95.0  # percentile of |w_axis| over the frames of a phase [percent]
     margin: float = 1.5  # multiplier on the percentile [-]
     floor_force_n: float = 5.0  # least eta0 of a force axis [N]
     floor_torque_nm: float = 2.0  # least eta0 of a torque axis [N m]
@@ -64,11 +66,21 @@ class BoundRule:
 
 
 def eta0_per_phase(
-    wrench_w: np.ndarray, phase: np.ndarray, num_phases: int, rule: BoundRule = BoundRule()
+    wrench_w: np.ndarray,
+    phase: np.ndarray,
+    num_phases: int,
+    rule: BoundRule = BoundRule(),
+    valid: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Initial bound (num_phases, 6) [N, N m] from a wrench profile (T, 6) and phase ids (T,)."""
+    """Initial bound (num_phases, 6) [N, N m] from a wrench profile (T, 6) and phase ids (T,).
+
+    ``valid`` (T,) bool excludes frames (e.g. those where the QP did not converge).
+    """
     wrench_w = np.asarray(wrench_w, dtype=float)
     phase = np.asarray(phase)
+    if valid is not None:
+        keep = np.asarray(valid, dtype=bool)
+        wrench_w, phase = wrench_w[keep], phase[keep]
     if wrench_w.ndim != 2 or wrench_w.shape[1] != 6:
         raise ValueError(f"wrench_w must have shape (T, 6), got {wrench_w.shape}.")
     if phase.shape != (wrench_w.shape[0],):

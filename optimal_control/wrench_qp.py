@@ -78,7 +78,7 @@ class WrenchQPConfig:
     joint_torque_reg: float = 1e-4  # eps_t, weight of |tau|^2 [1/(N m)^2]
     unaided_tol: float = 0.5  # |w|_2 at or below which a frame needs no help [N, N m]
     include_armature: bool = True  # add rotor armature (robots.g1.ARMATURE) to the joint rows [-]
-    eps_abs: float = 1e-8  # proxsuite absolute tolerance [-]
+    eps_abs: float = 1e-6  # proxsuite absolute tolerance on residuals [N, N m]
     max_iter: int = 1000  # proxsuite iteration cap [-]
     warm_start: bool = True  # start each frame from the previous solution [-]
 
@@ -152,6 +152,14 @@ class WrenchProfile:
 
 def _skew(r: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def _skew_batch(r: np.ndarray) -> np.ndarray:
+    out = np.zeros((r.shape[0], 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = -r[:, 2], r[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = r[:, 2], -r[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = -r[:, 1], r[:, 0]
+    return out
 
 
 def pelvis_com_offset_m(robot: G1Pinocchio) -> np.ndarray:
@@ -274,11 +282,12 @@ class WrenchQP:
             jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
             r_w = self._corners_m @ data.oMf[fid].rotation.T  # (4, 3) corner offsets, world axes
             offsets.append(r_w)
-            jac_lin_t, jac_ang_t = jac[:3].T, jac[3:].T  # (35, 3)
-            for k in range(CORNERS_PER_SOLE):
-                col = 3 * (s * CORNERS_PER_SOLE + k)
-                # Force f at origin + r: generalized force J_lin^T f + J_ang^T (r x f).
-                eq[:, col : col + 3] = jac_lin_t + jac_ang_t @ _skew(r_w[k])
+            # Force f at (sole origin + r): generalized force J_lin^T f + J_ang^T (r x f), and
+            # r x f = [r]x f, so the block of corner k is J_lin^T + J_ang^T [r_k]x.
+            skews = _skew_batch(r_w)  # (4, 3, 3)
+            blocks = jac[:3].T[None] + np.einsum("vi,kij->kvj", jac[3:].T, skews)  # (4, 35, 3)
+            col = 3 * CORNERS_PER_SOLE * s
+            eq[:, col : col + 3 * CORNERS_PER_SOLE] = blocks.transpose(1, 0, 2).reshape(NV, -1)
         eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data).T
         eq[:, SLICE_TAU] = self._selection_t
         return eq, b, offsets
@@ -350,8 +359,11 @@ class WrenchQP:
         corner = x[SLICE_F].reshape(NUM_SOLES, CORNERS_PER_SOLE, 3)
         contact_wrench = np.zeros((NUM_SOLES, 6))
         for s in range(NUM_SOLES):
-            contact_wrench[s, :3] = corner[s].sum(axis=0)
-            contact_wrench[s, 3:] = np.cross(offsets[s], corner[s]).sum(axis=0)
+            r, f = offsets[s], corner[s]
+            contact_wrench[s, :3] = f.sum(axis=0)
+            contact_wrench[s, 3] = np.sum(r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1])
+            contact_wrench[s, 4] = np.sum(r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2])
+            contact_wrench[s, 5] = np.sum(r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0])
         wrench = x[SLICE_W].copy()
         status = str(qp.results.info.status).split(".")[-1]
         solved = status == "PROXQP_SOLVED"

@@ -9,7 +9,11 @@ from __future__ import annotations
 import argparse
 import importlib
 
-BENCHMARK_MODULES: tuple[str, ...] = ("a2cf_mb.bench.sim", "a2cf_mb.bench.env")
+BENCHMARK_MODULES: tuple[str, ...] = (
+    "a2cf_mb.bench.sim",
+    "a2cf_mb.bench.env",
+    "a2cf_mb.bench.qp",
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

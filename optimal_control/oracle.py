@@ -1,0 +1,193 @@
+"""The oracle pipeline: reference -> wrench QP alpha sweep -> eta0 -> OracleArtifact on disk.
+
+One function per task solve (:func:`solve_walk`, :func:`solve_dance`); both go through
+:func:`solve_reference_oracle`, which the backflip (or any new task) can call with its own
+reference, extra summary fields and extra arrays.
+
+Besides the swept alphas the artifact carries an *upper envelope*: the no-contact wrench
+(both soles off, alpha = 1), i.e. the pelvis wrench that would replace the ground altogether
+(``extra_no_contact_wrench_w``). alpha = 0 is not swept: a pelvis wrench cannot hold limbs whose
+joints are passive, so that QP is infeasible (see :mod:`optimal_control.wrench_qp`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from optimal_control.artifact import VIDEO_FILE, OracleArtifact, build_artifact
+from optimal_control.bounds import BoundRule, envelope_per_phase
+from optimal_control.reference import Reference
+from optimal_control.wrench_qp import WrenchProfile, WrenchQP, WrenchQPConfig
+
+
+@dataclass(frozen=True)
+class OracleConfig:
+    """Alpha sweep, bound rule, QP options and outputs of an oracle solve."""
+
+    alphas: tuple[float, ...] = (1.0, 0.75, 0.5)  # torque-limit fractions swept [-]
+    novice_alpha: float = 0.5  # alpha of the novice model eta0 is derived from [-]
+    percentile: float = 95.0  # eta0 rule: percentile of |w| per phase and axis [percent]
+    margin: float = 1.5  # eta0 rule: multiplier on the percentile [-]
+    floor_force_n: float = 5.0  # eta0 rule: least bound of a force axis [N]
+    floor_torque_nm: float = 2.0  # eta0 rule: least bound of a torque axis [N m]
+    friction_coefficient: float = 0.7  # sole friction pyramid slope [-]
+    video: bool = True  # render the reference to reference.mp4 (MuJoCo, EGL)
+    video_width: int = 480  # video width [px]
+    video_height: int = 320  # video height [px]
+    progress: bool = True  # show a progress bar over the frames
+    out: str = ""  # artifact folder; empty = artifacts/<task>-<UTC timestamp>
+
+    def rule(self) -> BoundRule:
+        """The eta0 rule of this config."""
+        return BoundRule(
+            percentile=self.percentile,
+            margin=self.margin,
+            floor_force_n=self.floor_force_n,
+            floor_torque_nm=self.floor_torque_nm,
+            novice_alpha=self.novice_alpha,
+        )
+
+
+def default_output_dir(task: str) -> Path:
+    """``artifacts/<task>-<YYYYmmdd-HHMMSS>`` (UTC) in the working directory."""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S")
+    return Path("artifacts") / f"{task}-{stamp}"
+
+
+def sweep_alphas(
+    ref: Reference, cfg: OracleConfig = OracleConfig()
+) -> tuple[dict[float, WrenchProfile], dict[str, float]]:
+    """Wrench profiles of ``ref`` for every alpha of the sweep (novice alpha included).
+
+    Returns the profiles and the wall time of each sweep [s] keyed ``alpha_<a>``.
+    """
+    alphas = sorted(set(cfg.alphas) | {cfg.novice_alpha}, reverse=True)
+    profiles, timings = {}, {}
+    for alpha in alphas:
+        qp = WrenchQP(WrenchQPConfig(alpha=alpha, friction_coefficient=cfg.friction_coefficient))
+        start = time.perf_counter()
+        profiles[alpha] = qp.solve_reference(ref, progress=cfg.progress)
+        timings[f"alpha_{alpha:.2f}"] = time.perf_counter() - start
+    return profiles, timings
+
+
+def no_contact_profile(ref: Reference, cfg: OracleConfig = OracleConfig()) -> WrenchProfile:
+    """The upper envelope: the wrench along ``ref`` with both soles off the ground (alpha = 1)."""
+    airborne = dataclasses.replace(ref, contacts=np.zeros_like(ref.contacts))
+    qp = WrenchQP(WrenchQPConfig(alpha=1.0, friction_coefficient=cfg.friction_coefficient))
+    return qp.solve_reference(airborne)
+
+
+def solve_reference_oracle(
+    task: str,
+    ref: Reference,
+    cfg: OracleConfig = OracleConfig(),
+    extra_summary: dict | None = None,
+    extra_arrays: dict[str, np.ndarray] | None = None,
+    novice_model: str = "",
+) -> tuple[OracleArtifact, Path]:
+    """Run the sweep along ``ref``, derive eta0, render, save; returns the artifact and folder."""
+    if not cfg.alphas:
+        raise ValueError("OracleConfig.alphas is empty; give at least one alpha, e.g. 1.0 0.5.")
+    folder = Path(cfg.out) if cfg.out else default_output_dir(task)
+    profiles, timings = sweep_alphas(ref, cfg)
+    upper = no_contact_profile(ref, cfg)
+    num_phases = len(ref.phase_names)
+    upper_env = envelope_per_phase(upper.wrench_w, ref.phase, num_phases)
+    summary = {
+        "sweep_wall_time_s": timings,
+        "no_contact_envelope": {k: np.nan_to_num(v).tolist() for k, v in upper_env.items()},
+        **(extra_summary or {}),
+    }
+    arrays = {"no_contact_wrench_w": upper.wrench_w, **(extra_arrays or {})}
+    art = build_artifact(task, ref, profiles, cfg.rule(), novice_model, summary, arrays)
+    folder.mkdir(parents=True, exist_ok=True)
+    if cfg.video:
+        from optimal_control.render import RenderConfig, RenderUnavailableError, render_reference
+
+        try:
+            render_reference(
+                ref,
+                folder / VIDEO_FILE,
+                RenderConfig(width=cfg.video_width, height=cfg.video_height),
+                wrench_w=art.novice_profile.wrench_w,
+            )
+            art.video = VIDEO_FILE
+        except RenderUnavailableError as err:
+            art.video_note = f"no video: {err}"
+    else:
+        art.video_note = "no video: disabled (--no-video)"
+    art.save(folder)
+    return art, folder
+
+
+def solve_walk(walk_cfg=None, cfg: OracleConfig = OracleConfig()) -> tuple[OracleArtifact, Path]:
+    """Plan a placo walk at the commanded velocity and write its oracle artifact."""
+    from optimal_control.walk import WalkConfig, plan_walk
+
+    walk_cfg = walk_cfg or WalkConfig()
+    start = time.perf_counter()
+    plan = plan_walk(walk_cfg)
+    ref_time = time.perf_counter() - start
+    summary = {
+        "walk_config": dataclasses.asdict(walk_cfg),
+        "reference_time_s": ref_time,
+        "placo_planning_time_s": plan.planning_time_s,
+        "placo_ik_time_s": plan.ik_time_s,
+        "max_stance_slip_m": plan.max_stance_slip_m,
+        "footsteps": [
+            {"side": side, "x_m": float(x), "y_m": float(y), "yaw_rad": float(yaw)}
+            for side, (x, y, yaw) in zip(plan.footstep_sides, plan.footsteps_w, strict=True)
+        ],
+    }
+    return solve_reference_oracle("walk", plan.reference, cfg, summary)
+
+
+def solve_dance(
+    dance_cfg=None, cfg: OracleConfig = OracleConfig(), clip: str = "", clip_cfg=None
+) -> tuple[OracleArtifact, Path]:
+    """Oracle artifact of the built-in dance, or of a motion clip file when ``clip`` is given."""
+    from optimal_control.dance import DanceConfig, built_in_dance, pose_summary
+    from optimal_control.motion_clip import ClipConfig, load_motion_clip
+
+    start = time.perf_counter()
+    if clip:
+        clip_cfg = clip_cfg or ClipConfig()
+        ref = load_motion_clip(clip, clip_cfg)
+        summary = {"source": {"clip": str(clip), "clip_config": dataclasses.asdict(clip_cfg)}}
+    else:
+        dance_cfg = dance_cfg or DanceConfig()
+        plan = built_in_dance(dance_cfg)
+        ref = plan.reference
+        summary = {
+            "source": {"built_in": True, "dance_config": dataclasses.asdict(dance_cfg)},
+            "placo_ik_time_s": plan.ik_time_s,
+            "max_foot_error_m": plan.max_foot_error_m,
+        }
+    summary["reference_time_s"] = time.perf_counter() - start
+    summary["pose_summary"] = pose_summary(ref)
+    return solve_reference_oracle("dance", ref, cfg, summary)
+
+
+def format_summary(art: OracleArtifact, folder: Path) -> str:
+    """A few lines for the terminal: where, eta0 per phase, solver stats per alpha."""
+    lines = [f"oracle artifact: {folder}"]
+    for name, bound in art.eta0_dict().items():
+        f = ", ".join(f"{x:.1f}" for x in bound["force_n"])
+        m = ", ".join(f"{x:.1f}" for x in bound["torque_nm"])
+        lines.append(f"  eta0[{name}]: force [{f}] N, torque [{m}] N m")
+    for alpha in sorted(art.profiles, reverse=True):
+        s = art.profiles[alpha].stats()
+        lines.append(
+            f"  alpha {alpha:.2f}: {s['mean_time_ms']:.3f} ms/frame, unaided "
+            f"{100 * s['unaided_fraction']:.0f}%, solved {100 * s['solved_fraction']:.0f}%, "
+            f"max |w| {s['max_wrench_norm']:.1f}"
+        )
+    lines.append(f"  video: {art.video or art.video_note}")
+    return "\n".join(lines)
