@@ -145,7 +145,10 @@ def test_nan_state_is_detected_reset_and_counted():
     assert all(torch.isfinite(v).all() for v in obs.values())
     assert torch.isfinite(rew).all() and rew[1] == 0.0
     assert env.episode_length_buf[1] == 0 and env.episode_length_buf[0] == 2
-    _, _, dones, extras = env.step(zero_actions(env))  # and the run goes on
+    actions = zero_actions(env)
+    actions[3, 0] = float("nan")
+    _, _, dones, extras = env.step(actions)  # and the run goes on; bad actions are counted
+    assert extras["log"]["Episode/nonfinite_action_envs"] == 1.0
     assert extras["log"]["Episode/diverged_envs"] == 0.0 and not dones.any()
 
 

@@ -144,7 +144,11 @@ class G1VecEnv(VecEnv):
                 f"G1VecEnv.step expects actions of shape ({n}, {self.num_actions}) = (num_envs, "
                 f"29 joint + 6 assist), got {tuple(actions.shape)}."
             )
-        actions = torch.nan_to_num(actions.detach().to("cpu", torch.float32))
+        actions = actions.detach().to("cpu", torch.float32)
+        # A non-finite action would make MuJoCo reset the row; zero it and report how often.
+        nonfinite_actions = int((~torch.isfinite(actions).all(dim=-1)).sum())
+        if nonfinite_actions:
+            actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
         actions = actions.clamp(-cfg.clip_actions, cfg.clip_actions)
         self.action = actions[:, : g1.NUM_JOINTS]
         applied_phase = self.phase
@@ -221,6 +225,7 @@ class G1VecEnv(VecEnv):
 
         log["Episode/diverged_envs"] = float(num_diverged)
         log["Episode/diverged_envs_total"] = float(self.diverged_total)
+        log["Episode/nonfinite_action_envs"] = float(nonfinite_actions)
         log["Episode/terminated"] = float(terminated.float().mean())
         log["Assist/force_norm_n"] = float(wrench[:, :3].norm(dim=-1).mean())
         log["Assist/torque_norm_nm"] = float(wrench[:, 3:].norm(dim=-1).mean())
