@@ -210,3 +210,14 @@ def test_bad_inputs_give_clear_errors():
     with pytest.raises(ValueError, match="zeta"):
         env.set_random_mask_prob(1.5)
     assert "stand" in TASKS
+
+
+def test_bench_env_smoke():
+    from a2cf_mb.bench.env import EnvBenchConfig, format_results, run_env_benchmark
+
+    cfg = EnvBenchConfig(num_envs=(4,), num_steps=5, warmup_steps=1, repeats=1, num_threads=1)
+    results = run_env_benchmark(cfg)
+    figures = results["sizes"]["4"]
+    assert figures["env_steps_per_s"] > 0 and figures["physics_env_steps_per_s"] > 0
+    assert figures["env_over_physics"] > 0
+    assert "env/physics" in format_results(results)

@@ -112,8 +112,12 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig) -> dict:
         env.step(_random_actions(env, cfg, generator))
     states, controls = _record(env, cfg, generator)
     datas = [mujoco.MjData(env.model) for _ in range(env.num_threads)]
-    env_rate = physics = 0.0
+    env_rate = physics = ceiling = 0.0
     ratios = []
+    dec = env.cfg.decimation
+    # bench sim's measurement on the env's model: one long rollout holding the stand targets.
+    stand_ctrl = np.broadcast_to(g1.STAND_JOINT_POS_RAD, (num_envs, 200, g1.NUM_JOINTS)).copy()
+    sim_cfg = SimBenchConfig(num_rollouts=num_envs, num_steps=200, repeats=1)
     with rollout.Rollout(nthread=env.num_threads) as runner:
         _time_physics(env, runner, datas, states[:CHUNK], controls[:CHUNK])
         for _ in range(cfg.repeats):
@@ -127,15 +131,7 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig) -> dict:
             env_rate = max(env_rate, num_envs * cfg.num_steps / env_s)
             physics = max(physics, num_envs * cfg.num_steps / physics_s)
             ratios.append(physics_s / env_s)
-    dec = env.cfg.decimation
-    # bench sim's measurement on the env's model: one long rollout holding the stand targets.
-    ctrl = np.broadcast_to(g1.STAND_JOINT_POS_RAD, (num_envs, 200, g1.NUM_JOINTS)).copy()
-    ceiling = _rollout_rate(
-        env.model,
-        ctrl,
-        env.num_threads,
-        SimBenchConfig(num_rollouts=num_envs, num_steps=200, repeats=cfg.repeats),
-    )
+            ceiling = max(ceiling, _rollout_rate(env.model, stand_ctrl, env.num_threads, sim_cfg))
     figures = {
         "threads": env.num_threads,
         "env_steps_per_s": env_rate,
