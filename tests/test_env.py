@@ -193,6 +193,22 @@ def test_pushes_kick_the_base():
     assert (speed > still_speed + 0.05).all()
 
 
+class CrouchStartStand(StandTask):
+    """A task variant through the hooks only: start 5 cm lower with the knees bent more."""
+
+    def reset_state(self, env_ids, qpos, qvel):
+        qpos[:, 2] -= 0.05
+        qpos[:, 7 + g1.JOINT_NAMES.index("left_knee_joint")] += 0.3
+
+
+def test_tasks_plug_in_through_hooks():
+    env = G1VecEnv(EnvConfig(num_envs=3, num_threads=1, randomize=False), CrouchStartStand())
+    stand_z = env.layout.stand_state[env.layout.qpos.start + 2]
+    np.testing.assert_allclose(env.env_state.base_pos_w[:, 2].numpy(), stand_z - 0.05, atol=1e-6)
+    knee = g1.JOINT_NAMES.index("left_knee_joint")
+    assert (env.env_state.joint_pos_rad[:, knee] > g1.STAND_JOINT_POS_RAD[knee] + 0.2).all()
+
+
 def test_bad_inputs_give_clear_errors():
     with pytest.raises(ValueError, match="Unknown task"):
         make_env("moonwalk", 2)

@@ -295,6 +295,7 @@ class G1VecEnv(VecEnv):
         base_vel = (2 * torch.rand(m, 6, generator=gen) - 1) * cfg.reset_base_vel_noise_mps
         rows[:, v0 : v0 + 6] = base_vel.double()
         rows[:, lay.time] = 0.0
+        self.task.reset_state(env_ids, rows[:, lay.qpos], rows[:, lay.qvel])  # views: in place
         self._state_t[env_ids] = rows
 
         if cfg.randomize:

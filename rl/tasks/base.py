@@ -27,9 +27,10 @@ class RewardTerm:
 class Task(ABC):
     """Hooks of one skill. Subclasses set the class attributes and implement the methods.
 
-    Lifecycle, per env step: ``phase`` (before the wrench is applied), physics, then ``rewards`` via
-    :meth:`reward_terms`, ``terminated``, ``on_episodes_end`` for envs that finish, ``reset`` for
-    them, then ``commands`` / ``privileged_extras`` for the next observations.
+    Lifecycle, per env step: ``phase`` (before the wrench is applied), physics, then ``rewards``
+    via :meth:`reward_terms`, ``terminated``, ``on_episodes_end`` for envs that finish,
+    ``reset_state`` and ``reset`` for them, then ``commands`` / ``privileged_extras`` for the
+    next observations.
     """
 
     name: str = ""
@@ -80,6 +81,13 @@ class Task(ABC):
     def privileged_extras(self, state: EnvState) -> torch.Tensor:
         """Task-specific privileged observation (N, extra_privileged_dim)."""
         return torch.zeros(state.base_pos_w.shape[0], self.extra_privileged_dim)
+
+    def reset_state(  # noqa: B027 - optional hook
+        self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor
+    ) -> None:
+        """Edit in place the initial MuJoCo ``qpos`` (M, 36) and ``qvel`` (M, 35) (float64) of
+        resetting envs ``env_ids`` (M,), e.g. to start from a reference frame; default: the noisy
+        standing pose the env drew."""
 
     def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
         """Resample per-env task state (commands, phase timers) for ``env_ids`` (M,)."""
