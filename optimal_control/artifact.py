@@ -264,6 +264,7 @@ def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchP
         solved=arrays[f"{p}solved"].astype(bool),
         unaided=arrays[f"{p}unaided"].astype(bool),
         iterations=arrays[f"{p}iterations"],
+        warm_started=arrays[f"{p}warm_started"].astype(bool),
         solve_time_s=arrays[f"{p}solve_time_s"],
         status=["loaded"] * n,
     )

@@ -38,8 +38,8 @@ class OracleConfig:
     floor_torque_nm: float = 2.0  # eta0 rule: least bound of a torque axis [N m]
     friction_coefficient: float = 0.7  # sole friction pyramid slope [-]
     video: bool = True  # render the reference to reference.mp4 (MuJoCo, EGL)
-    video_width: int = 480  # video width [px]
-    video_height: int = 320  # video height [px]
+    video_width: int = 400  # video width [px]
+    video_height: int = 300  # video height [px]
     progress: bool = True  # show a progress bar over the frames
     out: str = ""  # artifact folder; empty = artifacts/<task>-<UTC timestamp>
 

@@ -47,7 +47,8 @@ class RenderConfig:
 
     width: int = 640  # frame width [px]
     height: int = 360  # frame height [px]
-    fps: float = 0.0  # video frame rate; 0 = real time (1 / reference dt) [1/s]
+    fps: float = 0.0  # video frame rate; 0 = real time (1 / (reference dt x frame_stride)) [1/s]
+    frame_stride: int = 2  # render every n-th reference frame (CPU rendering is slow) [-]
     max_frames: int = 0  # stop after this many frames; 0 = all [-]
     force_arrow_m_per_n: float = 0.01  # arrow length per newton of pelvis force [m/N]
     camera_distance_m: float = 3.0  # tracking camera distance to the pelvis [m]
@@ -108,13 +109,16 @@ def render_reference(
     camera.distance = cfg.camera_distance_m
     camera.azimuth = cfg.camera_azimuth_deg
     camera.elevation = cfg.camera_elevation_deg
-    fps = cfg.fps or 1.0 / ref.dt
-    num = ref.num_frames if cfg.max_frames <= 0 else min(cfg.max_frames, ref.num_frames)
+    stride = max(1, cfg.frame_stride)
+    fps = cfg.fps or 1.0 / (ref.dt * stride)
+    frames = list(range(0, ref.num_frames, stride))
+    if cfg.max_frames > 0:
+        frames = frames[: cfg.max_frames]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         with imageio.get_writer(path, fps=fps, macro_block_size=1) as writer:
-            for t in range(num):
+            for t in frames:
                 data.qpos[:] = pin_to_mj_qpos(ref.q[t])
                 mujoco.mj_forward(model, data)
                 renderer.update_scene(data, camera=camera)

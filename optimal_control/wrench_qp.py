@@ -95,6 +95,7 @@ class FrameSolution:
     solved: bool  # proxsuite converged (False: e.g. alpha too small to hold the limbs at all)
     unaided: bool  # |w| <= unaided_tol: the robot does this frame without help
     iterations: int  # proxsuite iterations
+    warm_started: bool  # the answer came from the warm-started solve (no cold retry)
     status: str  # proxsuite status name
     solve_time_s: float  # model terms + QP time [s]
 
@@ -112,6 +113,7 @@ class WrenchProfile:
     solved: np.ndarray  # (T,) bool, the QP converged
     unaided: np.ndarray  # (T,) bool
     iterations: np.ndarray  # (T,) int
+    warm_started: np.ndarray  # (T,) bool, answered by the warm start (False: cold solve)
     solve_time_s: np.ndarray  # (T,) [s]
     status: list[str] = field(default_factory=list)  # (T,) proxsuite status names
 
@@ -128,6 +130,7 @@ class WrenchProfile:
             "mean_time_ms": float(1e3 * self.solve_time_s.mean()),
             "max_time_ms": float(1e3 * self.solve_time_s.max()),
             "mean_iterations": float(self.iterations.mean()),
+            "cold_solves": int(np.sum(~self.warm_started)),
             "max_residual": float(self.residual.max()),
             "solved_fraction": float(self.solved.mean()),
             "unaided_fraction": float(self.unaided.mean()),
@@ -146,6 +149,7 @@ class WrenchProfile:
             f"{prefix}solved": self.solved,
             f"{prefix}unaided": self.unaided,
             f"{prefix}iterations": self.iterations,
+            f"{prefix}warm_started": self.warm_started,
             f"{prefix}solve_time_s": self.solve_time_s,
         }
 
@@ -167,14 +171,18 @@ def pelvis_com_offset_m(robot: G1Pinocchio) -> np.ndarray:
     return np.asarray(robot.model.inertias[1].lever, dtype=float).copy()
 
 
-def pelvis_wrench_jacobian(robot: G1Pinocchio, data: pin.Data) -> np.ndarray:
+def pelvis_wrench_jacobian(
+    robot: G1Pinocchio, data: pin.Data, com_offset_m: np.ndarray | None = None
+) -> np.ndarray:
     """Jacobian (6, 35) of the pelvis CoM point with world axes: tau_gen = J^T w.
 
     Needs ``pin.computeJointJacobians`` (which also runs forward kinematics) on ``data`` first. Rows
     0:3 map v to the world velocity of the pelvis CoM, rows 3:6 to the world angular velocity.
+    ``com_offset_m`` (3,) caches :func:`pelvis_com_offset_m`.
     """
     jac = pin.getJointJacobian(robot.model, data, 1, pin.LOCAL_WORLD_ALIGNED)
-    r_w = data.oMi[1].rotation @ pelvis_com_offset_m(robot)
+    offset = pelvis_com_offset_m(robot) if com_offset_m is None else com_offset_m
+    r_w = data.oMi[1].rotation @ offset
     out = jac.copy()
     out[:3] -= _skew(r_w) @ jac[3:]  # v_com = v_origin + omega x r = v_origin - [r]x omega
     return out
@@ -231,6 +239,8 @@ class WrenchQP:
         self._friction_rows = self._build_friction_rows()
         self._selection_t = np.zeros((NV, NT))
         self._selection_t[self._joint_v, np.arange(NT)] = 1.0
+        self._pelvis_com_m = pelvis_com_offset_m(self.robot)
+        self._box_cache: dict[tuple[bool, bool, float], tuple[np.ndarray, np.ndarray]] = {}
         self._qp: proxsuite.proxqp.dense.QP | None = None
 
     def _build_hessian(self) -> np.ndarray:
@@ -288,11 +298,17 @@ class WrenchQP:
             blocks = jac[:3].T[None] + np.einsum("vi,kij->kvj", jac[3:].T, skews)  # (4, 35, 3)
             col = 3 * CORNERS_PER_SOLE * s
             eq[:, col : col + 3 * CORNERS_PER_SOLE] = blocks.transpose(1, 0, 2).reshape(NV, -1)
-        eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data).T
+        eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data, self._pelvis_com_m).T
         eq[:, SLICE_TAU] = self._selection_t
         return eq, b, offsets
 
     def _box(self, contacts: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+        key = (bool(contacts[0]), bool(contacts[1]), alpha)
+        if key not in self._box_cache:
+            self._box_cache[key] = self._make_box(contacts, alpha)
+        return self._box_cache[key]
+
+    def _make_box(self, contacts: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
         lower = np.full(NX, -_INF)
         upper = np.full(NX, _INF)
         for s in range(NUM_SOLES):
@@ -345,13 +361,15 @@ class WrenchQP:
         contacts = np.asarray(contacts, dtype=bool)
         eq, b, offsets = self.model_terms(q, v, a)
         l_box, u_box = self._box(contacts, alpha)
-        qp = None
+        qp, warm = None, False
         if self._qp is not None and self.cfg.warm_start:
             qp = self._qp
             qp.update(A=eq, b=b, l_box=l_box, u_box=u_box, update_preconditioner=False)
             qp.solve()
             if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
                 qp = None  # a warm start can stall on a contact switch: retry from scratch
+            else:
+                warm = True
         if qp is None:
             qp = self._cold_solve(eq, b, l_box, u_box)
         x = qp.results.x
@@ -376,6 +394,7 @@ class WrenchQP:
             solved=solved,
             unaided=solved and bool(np.linalg.norm(wrench) <= self.cfg.unaided_tol),
             iterations=int(qp.results.info.iter),
+            warm_started=warm,
             status=status,
             solve_time_s=time.perf_counter() - start,
         )
@@ -402,6 +421,7 @@ class WrenchQP:
             solved=np.array([s.solved for s in sols]),
             unaided=np.array([s.unaided for s in sols]),
             iterations=np.array([s.iterations for s in sols]),
+            warm_started=np.array([s.warm_started for s in sols]),
             solve_time_s=np.array([s.solve_time_s for s in sols]),
             status=[s.status for s in sols],
         )

@@ -162,7 +162,9 @@ def test_warm_start_gives_the_cold_answer(g1_pin, rng):
     assert warm.solved.all()
     # Repeating a frame, the warm start is already the solution.
     still = static_reference(_squat_pose(g1_pin), 4, 0.02)
-    assert np.all(WrenchQP(cfg).solve_reference(still).iterations[1:] == 0)
+    warm_still = WrenchQP(cfg).solve_reference(still)
+    assert np.all(warm_still.iterations[1:] == 0) and warm_still.warm_started[1:].all()
+    assert not cold.warm_started.any()
     cold_still = WrenchQP(dataclasses.replace(cfg, warm_start=False)).solve_reference(still)
     assert np.all(cold_still.iterations > 0)
     assert warm.wrench_w.shape == (12, 6) and warm.tau_nm.shape == (12, g1.NUM_JOINTS)
