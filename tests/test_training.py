@@ -83,6 +83,16 @@ def test_two_iterations_of_every_mode(tmp_path, mode: str) -> None:
         assert eta0[0][0] == eta0[0][1] == eta0[0][2] and eta0[0][3] == eta0[0][4] == eta0[0][5]
     else:
         assert eta0 == [list(PAPER_INITIAL_BOUNDS["stand"][0])]
+    if mode == "a2cf":
+        from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+        tags = set(EventAccumulator(str(run)).Reload().Tags()["scalars"])
+        expected = {
+            "Loss/surrogate", "Loss/value", "Loss/vae_reconstruction", "Reward/alive",
+            "Curriculum/eta_stand_fx", "Curriculum/eta_stand_mz", "Curriculum/applied_force_n",
+            "Curriculum/skill_progress", "Train/mean_step_reward",
+        }  # fmt: skip
+        assert expected <= tags, expected - tags
     uses_privileged = mode in ("a2cf", "no-id", "no-rm")
     config = json.loads((run / "config.json").read_text())
     assert ("privileged" in config["rsl_rl"]["obs_groups"]["actor"]) == uses_privileged
