@@ -88,6 +88,8 @@ class G1VecEnv(VecEnv):
 
         self._stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
         self._action_scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32)
+        self._effort_nm = torch.as_tensor(g1.EFFORT_LIMIT_NM, dtype=torch.float32)
+        self._gravity_dir_w = torch.tensor([0.0, 0.0, -1.0]).expand(n, 3)
         self.action = torch.zeros(n, g1.NUM_JOINTS)
         self.last_action = torch.zeros(n, g1.NUM_JOINTS)
         self.applied_wrench = torch.zeros(n, WRENCH_DIM)
@@ -198,18 +200,18 @@ class G1VecEnv(VecEnv):
         time_outs = (self.episode_length_buf >= self.max_episode_length) & ~terminated
         dones = terminated | time_outs
 
-        reward = torch.zeros(n)
-        log: dict[str, float] = {}
-        for name, term in self._reward_terms.items():
-            value = term.fn(state) * (term.weight * self.step_dt_s)
-            reward += value
-            log[f"Reward/{name}"] = float(value.mean())
+        names = list(self._reward_terms)
+        terms = [t.fn(state) * (t.weight * self.step_dt_s) for t in self._reward_terms.values()]
         if self.assist.less_assist_reward:
-            value = rewards.less_assist(wrench, bound) * (
-                self.task.less_assist_weight * self.step_dt_s
-            )
-            reward += value
-            log["Reward/less_assist"] = float(value.mean())
+            names.append("less_assist")
+            weight = self.task.less_assist_weight * self.step_dt_s
+            terms.append(rewards.less_assist(wrench, bound) * weight)
+        weighted = torch.stack(terms)  # (terms, N)
+        reward = weighted.sum(dim=0)
+        log: dict[str, float] = {
+            f"Reward/{name}": value
+            for name, value in zip(names, weighted.mean(dim=1).tolist(), strict=True)
+        }
         reward = torch.where(diverged, torch.zeros_like(reward), torch.nan_to_num(reward))
 
         done_ids = dones.nonzero().flatten()
@@ -332,7 +334,7 @@ class G1VecEnv(VecEnv):
         sens = self._sensor_t.float()
         quat = qpos[:, 3:7]
         lin_vel_w = qvel[:, 0:3]
-        gravity_w = torch.tensor([0.0, 0.0, -1.0]).expand(self.num_envs, 3)
+        gravity_w = self._gravity_dir_w
         foot_pos = torch.stack([sens[:, lay.foot_pos[0]], sens[:, lay.foot_pos[1]]], dim=1)
         bound = self.assist.bound[self.phase]
         return EnvState(
@@ -416,7 +418,7 @@ class G1VecEnv(VecEnv):
                 s.base_pos_w[:, 2:3],
                 feet_rel_b,
                 self.applied_wrench / weight_n,
-                s.joint_torque_nm / torch.as_tensor(g1.EFFORT_LIMIT_NM, dtype=torch.float32),
+                s.joint_torque_nm / self._effort_nm,
             ],
             dim=-1,
         )
