@@ -218,6 +218,8 @@ def test_bad_inputs_give_clear_errors():
         EnvConfig(num_envs=0)
     with pytest.raises(ValueError, match="payload_body"):
         G1VecEnv(EnvConfig(num_envs=1, payload_body="backpack"), StandTask())
+    with pytest.raises(ValueError, match="payload_mass_range_kg"):
+        make_env("stand", 1, payload_mass_range_kg=(-20.0, 0.0))
     env = make_env("stand", 2, num_threads=1)
     with pytest.raises(ValueError, match=r"actions of shape \(2, 35\)"):
         env.step(torch.zeros(2, 29))

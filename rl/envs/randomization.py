@@ -70,6 +70,14 @@ class ModelRandomizer:
             nominal_inertia=model.body_inertia[body].copy(),
         )
 
+    def check_payload_range(self, payload_mass_range_kg: tuple[float, float]) -> None:
+        """Refuse a payload range that could leave the payload body with no mass."""
+        if self.nominal_mass_kg + payload_mass_range_kg[0] <= 0:
+            raise ValueError(
+                f"EnvConfig.payload_mass_range_kg {payload_mass_range_kg} can remove more than the "
+                f"payload body's {self.nominal_mass_kg:.2f} kg; raise its lower end."
+            )
+
     def apply(self, model: mujoco.MjModel, params: np.ndarray) -> None:
         """Write one parameter row (5,) into ``model`` (an env's own copy)."""
         friction, payload_kg = float(params[0]), float(params[1])

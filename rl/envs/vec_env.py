@@ -68,6 +68,8 @@ class G1VecEnv(VecEnv):
         self.total_mass_kg = float(self.model.body_subtreemass[0])
 
         self._randomizer = ModelRandomizer.for_model(self.model, cfg.payload_body)
+        if cfg.randomize:
+            self._randomizer.check_payload_range(cfg.payload_mass_range_kg)
         self.models = (
             [copy.copy(self.model) for _ in range(n)] if cfg.randomize else [self.model] * n
         )

@@ -46,7 +46,7 @@ class StandConfig:
     w_base_lin_vel: float = -0.5  # weight of base_lin_vel_xy_l2 [s^2/m^2]
     w_base_ang_vel: float = -0.05  # weight of base_ang_vel_xy_l2 [s^2/rad^2]
     w_feet_contact: float = 0.5  # weight of feet_contact [-]
-    w_termination: float = -50.0  # weight of termination (per fall, divided by dt by the env) [-]
+    w_termination: float = -50.0  # weight of termination; times dt 0.02 s: -1 per fall [-]
     w_less_assist: float = 1.0  # weight of the less-assist reward when switched on [-]
 
 
