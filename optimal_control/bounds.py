@@ -7,11 +7,14 @@ the per-frame QP following the reference with torque limits scaled by ``novice_a
 
 Rule ``percentile_margin`` (the default, :class:`BoundRule`)::
 
-    eta0[p, i] = max(floor_i, margin * percentile_P(|w_i(t)| for frames t of phase p))
+    eta0[p, i] = max(floor_i, margin * percentile_P(|w_i(t)| for frames t of phase p that need help))
 
 with ``floor_i`` = ``floor_force_n`` for the force axes and ``floor_torque_nm`` for the torque axes,
 over the frames where the QP converged (a frame the novice cannot do even with help, because a
-limb lacks torque, has no meaningful wrench; the artifact counts such frames per phase).
+limb lacks torque, has no meaningful wrench; the artifact counts such frames per phase) and, with
+``frames = "aided"`` (default), only those that need help (``|w| > unaided_tol``): the bound must
+cover the help *when* it is needed, however rare those moments are in the phase (a dance that is
+easy 95 % of the time still needs its hard 5 % covered). ``frames = "all"`` uses every frame.
 The floor keeps a little room on axes the envelope says are never needed (a learner deviates from
 the reference), the margin covers the learner's deviation on axes that are needed. A phase with no
 frame gets the floor. The rule's name and parameters are stored in every artifact.
@@ -54,6 +57,8 @@ class BoundRule:
     floor_force_n: float = 5.0  # least eta0 of a force axis [N]
     floor_torque_nm: float = 2.0  # least eta0 of a torque axis [N m]
     novice_alpha: float = 0.5  # torque-limit fraction of the novice model the rule reads [-]
+    frames: str = "aided"  # frames the percentile reads: "aided" (need help) or "all"
+    unaided_tol: float = 0.5  # |w| at or below which a frame needs no help [N, N m]
 
     def to_dict(self) -> dict:
         """JSON-ready parameters."""
@@ -78,9 +83,12 @@ def eta0_per_phase(
     """
     wrench_w = np.asarray(wrench_w, dtype=float)
     phase = np.asarray(phase)
-    if valid is not None:
-        keep = np.asarray(valid, dtype=bool)
-        wrench_w, phase = wrench_w[keep], phase[keep]
+    if rule.frames not in ("aided", "all"):
+        raise ValueError(f"BoundRule.frames must be 'aided' or 'all', got '{rule.frames}'.")
+    keep = np.ones(wrench_w.shape[0], dtype=bool) if valid is None else np.asarray(valid, bool)
+    if rule.frames == "aided":
+        keep &= np.linalg.norm(wrench_w, axis=1) > rule.unaided_tol
+    wrench_w, phase = wrench_w[keep], phase[keep]
     if wrench_w.ndim != 2 or wrench_w.shape[1] != 6:
         raise ValueError(f"wrench_w must have shape (T, 6), got {wrench_w.shape}.")
     if phase.shape != (wrench_w.shape[0],):

@@ -36,6 +36,7 @@ class OracleConfig:
     margin: float = 1.5  # eta0 rule: multiplier on the percentile [-]
     floor_force_n: float = 5.0  # eta0 rule: least bound of a force axis [N]
     floor_torque_nm: float = 2.0  # eta0 rule: least bound of a torque axis [N m]
+    bound_frames: str = "aided"  # eta0 rule reads frames that need help ("aided") or "all"
     friction_coefficient: float = 0.7  # sole friction pyramid slope [-]
     video: bool = True  # render the reference to reference.mp4 (MuJoCo, EGL)
     video_width: int = 400  # video width [px]
@@ -51,6 +52,7 @@ class OracleConfig:
             floor_force_n=self.floor_force_n,
             floor_torque_nm=self.floor_torque_nm,
             novice_alpha=self.novice_alpha,
+            frames=self.bound_frames,
         )
 
 

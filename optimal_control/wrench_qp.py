@@ -78,7 +78,7 @@ class WrenchQPConfig:
     joint_torque_reg: float = 1e-4  # eps_t, weight of |tau|^2 [1/(N m)^2]
     unaided_tol: float = 0.5  # |w|_2 at or below which a frame needs no help [N, N m]
     include_armature: bool = True  # add rotor armature (robots.g1.ARMATURE) to the joint rows [-]
-    eps_abs: float = 1e-6  # proxsuite absolute tolerance on residuals [N, N m]
+    eps_abs: float = 1e-5  # proxsuite absolute tolerance on residuals [N, N m]
     max_iter: int = 1000  # proxsuite iteration cap [-]
     warm_start: bool = True  # start each frame from the previous solution [-]
 

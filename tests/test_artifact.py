@@ -23,6 +23,12 @@ def test_eta0_rule_percentile_margin_and_floor():
     np.testing.assert_allclose(eta0[0], [5.0, 40.0, 5.0, 1.0, 1.0, 1.0])
     np.testing.assert_allclose(eta0[1], [5.0, 5.0, 100.0, 1.0, 1.0, 1.0])
     np.testing.assert_allclose(eta0[2], [5.0, 5.0, 5.0, 1.0, 1.0, 1.0])  # empty phase: floor
+    # Rare help: the "aided" rule covers it, a percentile over all frames misses it.
+    rare = np.zeros((100, 6))
+    rare[:3, 0] = 30.0
+    zeros = np.zeros(100, dtype=int)
+    assert eta0_per_phase(rare, zeros, 1, BoundRule())[0, 0] == pytest.approx(45.0)
+    assert eta0_per_phase(rare, zeros, 1, BoundRule(frames="all"))[0, 0] == 5.0
     with pytest.raises(ValueError, match="Unknown bound rule"):
         eta0_per_phase(wrench, phase, 2, BoundRule(name="nope"))
 

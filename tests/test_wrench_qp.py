@@ -67,7 +67,7 @@ def test_static_standing_needs_no_help(g1_pin):
     sol = qp.solve(g1_pin.q_stand, np.zeros(NV), np.zeros(NV), (True, True))
     assert sol.unaided
     assert np.linalg.norm(sol.wrench_w) < 0.05
-    assert sol.residual < 1e-6
+    assert sol.residual < 1e-4
     # The soles carry the weight, each with its centre of pressure inside the sole.
     np.testing.assert_allclose(
         sol.contact_wrench_w[:, 2].sum(), g1_pin.total_mass_kg * GRAVITY, rtol=1e-4
@@ -82,7 +82,7 @@ def test_no_contact_needs_exactly_the_weight(g1_pin):
     np.testing.assert_allclose(sol.wrench_w, _weight_wrench_at_pelvis_com(g1_pin, q), atol=1e-3)
     assert not sol.unaided
     np.testing.assert_allclose(sol.corner_forces_w, 0.0, atol=1e-6)
-    assert sol.residual < 1e-6
+    assert sol.residual < 1e-4
 
 
 def test_single_support_off_balance_needs_help_and_lifted_foot_carries_nothing(g1_pin):
@@ -116,7 +116,7 @@ def test_lowering_alpha_never_lowers_the_wrench(g1_pin):
     norms = []
     for alpha in (1.0, 0.75, 0.5, 0.25, 0.1):
         sol = qp.solve(q, np.zeros(NV), a, (True, True), alpha=alpha)
-        assert sol.solved and sol.residual < 1e-5
+        assert sol.solved and sol.residual < 1e-4
         assert np.all(np.abs(sol.tau_nm) <= alpha * g1.EFFORT_LIMIT_NM + 1e-5)
         norms.append(np.linalg.norm(sol.wrench_w))
     assert np.all(np.diff(norms) >= -1e-3), norms
@@ -158,7 +158,7 @@ def test_warm_start_gives_the_cold_answer(g1_pin, rng):
     warm = WrenchQP(cfg).solve_reference(ref)
     cold = WrenchQP(dataclasses.replace(cfg, warm_start=False)).solve_reference(ref)
     np.testing.assert_allclose(warm.wrench_w, cold.wrench_w, atol=1e-3)
-    assert warm.residual.max() < 1e-5
+    assert warm.residual.max() < 1e-4
     assert warm.solved.all()
     # Repeating a frame, the warm start is already the solution.
     still = static_reference(_squat_pose(g1_pin), 4, 0.02)
