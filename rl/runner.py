@@ -356,7 +356,9 @@ class A2CFRunner(OnPolicyRunner):
             else None,
             "skill_progress": skill_progress,
             "applied_force_n": mean_force_n,
-            "eta_norm": torch.linalg.vector_norm(self.curriculum.eta, dim=-1).tolist(),
+            "eta_norm": torch.linalg.vector_norm(self.curriculum.eta, dim=-1).tolist()
+            if self.mode.assist
+            else None,
             "assist_enabled": bool(self.mode.assist and self.curriculum.assist_enabled),
             "less_assist_reward": bool(self.mode.assist and self.curriculum.less_assist_reward),
             "losses": dict(loss_dict),
@@ -586,7 +588,9 @@ def summarise(runner: A2CFRunner, cfg: TrainConfig) -> dict[str, Any]:
             "eta": runner.curriculum.eta.tolist(),
             "assist_enabled": runner.curriculum.assist_enabled,
             "less_assist_reward": runner.curriculum.less_assist_reward,
-        },
+        }
+        if runner.mode.assist
+        else None,
     }
     if rows:
         summary["mean_iteration_time_s"] = float(np.mean([r["iteration_time_s"] for r in rows]))
@@ -608,6 +612,7 @@ class EvalConfig:
     num_steps: int = 0  # control steps to roll out; 0: one full episode length [-]
     seed: int = 1  # env seed (differs from training's default 0) [-]
     use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
+    video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
 
 
 def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, Any]:
@@ -653,10 +658,13 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     fell = torch.zeros(cfg.num_envs, dtype=torch.bool)
     obs = env.get_observations()
     zeros = torch.zeros(cfg.num_envs, ASSIST_ACTION_DIM)
+    qpos_env0 = [env.state[0, env.layout.qpos].copy()] if cfg.video else []
     with torch.inference_mode(), contextlib.closing(env):
         for _ in range(num_steps):
             actions = policy(obs).reshape(cfg.num_envs, motion_dim)
             obs, rewards, dones, extras = env.step(torch.cat([actions, zeros], dim=-1))
+            if cfg.video and active[0] and not bool(dones[0]):
+                qpos_env0.append(env.state[0, env.layout.qpos].copy())
             returns += torch.where(active, rewards.float().cpu(), 0.0)
             lengths += active.float()
             done = dones.bool().cpu()
@@ -676,5 +684,31 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         "mean_return": float(returns.mean()),
         "mean_episode_length_steps": float(lengths.mean()),
     }
+    if cfg.video:
+        result["video"] = str(
+            _render_qpos(np.asarray(qpos_env0), env.step_dt_s, cfg.video, train_cfg.task)
+        )
     (run_dir / "eval.json").write_text(json.dumps(result, indent=2))
     return result
+
+
+def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
+    """Kinematic replay video of MuJoCo configurations (T, 36) with the full visual G1 model."""
+    from optimal_control.reference import Reference
+    from optimal_control.render import render_reference
+    from robots.conventions import mj_to_pin_q
+
+    q = np.stack([mj_to_pin_q(row) for row in qpos])
+    frames = q.shape[0]
+    ref = Reference(
+        time_s=np.arange(frames) * dt_s,
+        q=q,
+        v=np.zeros((frames, q.shape[1] - 1)),
+        a=np.zeros((frames, q.shape[1] - 1)),
+        contacts=np.zeros((frames, 2), dtype=bool),
+        phase=np.zeros(frames, dtype=int),
+        phase_names=(name,),
+        dt=dt_s,
+        name=name,
+    )
+    return render_reference(ref, path)

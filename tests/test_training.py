@@ -140,8 +140,10 @@ def test_cli_train_then_eval(tmp_path) -> None:
     assert saved["model"]["motion_hidden_dims"] == [32, 32] and saved["iterations"] == 1
     assert cli_main(["train", "--resume", str(run), "--iterations", "2"]) == 0
     assert len(read_jsonl(run / CURRICULUM_LOG)) == 2
-    result = evaluate(run, EvalConfig(num_envs=4, num_steps=20))
+    video = tmp_path / "eval.mp4"
+    result = evaluate(run, EvalConfig(num_envs=4, num_steps=20, video=str(video)))
     assert result["num_steps"] == 20 and 0.0 <= result["survival_fraction"] <= 1.0
+    assert video.is_file() and video.stat().st_size > 0
     assert (run / "eval.json").is_file()
     assert cli_main(["eval", str(run), "--num-envs", "2", "--num-steps", "5", "--no-use-onnx"]) == 0
 
