@@ -416,6 +416,21 @@ class A2CFRunner(OnPolicyRunner):
         self.history = list(state.get("history", []))
         torch.set_rng_state(state["torch_rng_state"])
         self.apply_curriculum()
+        self._truncate_curriculum_log()
+
+    def _truncate_curriculum_log(self) -> None:
+        """Drop log lines of iterations after the checkpoint (a kill between log and save)."""
+        path = self.run_dir / CURRICULUM_LOG
+        if not path.is_file():
+            return
+        lines = [line for line in path.read_text().splitlines() if line.strip()]
+        kept = [
+            line
+            for line in lines
+            if json.loads(line)["iteration"] < self.current_learning_iteration
+        ]
+        if len(kept) != len(lines):
+            path.write_text("".join(line + "\n" for line in kept))
 
 
 def git_revision(path: Path) -> dict[str, Any]:
@@ -492,7 +507,6 @@ def _new_run_dir(cfg: TrainConfig) -> Path:
         raise FileExistsError(
             f"run folder {run_dir} already holds a run: pick another --run-name or use --resume"
         )
-    run_dir.mkdir(parents=True, exist_ok=True)
     return run_dir
 
 
@@ -531,6 +545,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
     )
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
     rsl_cfg = rsl_rl_config(cfg, mode)
+    run_dir.mkdir(parents=True, exist_ok=True)  # only once the task and env are known to work
 
     quiet: Any = contextlib.nullcontext() if verbose else contextlib.redirect_stdout(io.StringIO())
     with quiet:

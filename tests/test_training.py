@@ -105,7 +105,10 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     ckpt = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     assert ckpt["completed_iterations"] == 2
     eta_at_stop = ckpt["curriculum"]["eta"]
-    # "kill" = the process stopped after iteration 2; resume up to 4 iterations in total
+    # "kill" = the process stopped after iteration 2, here just after logging a third iteration
+    # whose checkpoint was never written: the resume drops that line and redoes the iteration
+    with open(first.run_dir / CURRICULUM_LOG, "a") as f:
+        f.write(json.dumps({"iteration": 2, "eta": [[0.0] * 6]}) + "\n")
     resumed = train(
         dataclasses.replace(TrainConfig(), resume=str(first.run_dir), iterations=4), verbose=False
     )
