@@ -85,7 +85,9 @@ def eta0_per_phase(
     phase = np.asarray(phase)
     if rule.frames not in ("aided", "all"):
         raise ValueError(f"BoundRule.frames must be 'aided' or 'all', got '{rule.frames}'.")
-    keep = np.ones(wrench_w.shape[0], dtype=bool) if valid is None else np.asarray(valid, bool)
+    keep = np.ones(wrench_w.shape[0], dtype=bool)
+    if valid is not None:
+        keep &= np.asarray(valid, dtype=bool)  # never modify the caller's mask
     if rule.frames == "aided":
         keep &= np.linalg.norm(wrench_w, axis=1) > rule.unaided_tol
     wrench_w, phase = wrench_w[keep], phase[keep]

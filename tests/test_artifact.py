@@ -29,6 +29,9 @@ def test_eta0_rule_percentile_margin_and_floor():
     zeros = np.zeros(100, dtype=int)
     assert eta0_per_phase(rare, zeros, 1, BoundRule())[0, 0] == pytest.approx(45.0)
     assert eta0_per_phase(rare, zeros, 1, BoundRule(frames="all"))[0, 0] == 5.0
+    valid = np.ones(100, dtype=bool)
+    eta0_per_phase(rare, zeros, 1, BoundRule(), valid=valid)
+    assert valid.all()  # the caller's mask is left alone
     with pytest.raises(ValueError, match="Unknown bound rule"):
         eta0_per_phase(wrench, phase, 2, BoundRule(name="nope"))
 

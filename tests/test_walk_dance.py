@@ -146,3 +146,17 @@ def test_render_two_tiny_frames(walk_plan, tmp_path):
         wrench_w=np.ones((walk_plan.reference.num_frames, 6)),
     )
     assert path.stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_full_walk_and_dance_artifacts_with_video(tmp_path):
+    """The two CLI solves at their defaults, video included (minutes on a laptop CPU)."""
+    assert main(["solve-walk", "--no-progress", "--out", str(tmp_path / "walk")]) == 0
+    walk = OracleArtifact.load(tmp_path / "walk")
+    assert walk.video == "reference.mp4" and (tmp_path / "walk" / "reference.mp4").is_file()
+    # Walking needs more help in single support than in double support.
+    assert walk.eta0[1].sum() > walk.eta0[0].sum()
+    assert main(["solve-dance", "--no-progress", "--out", str(tmp_path / "dance")]) == 0
+    dance = OracleArtifact.load(tmp_path / "dance")
+    assert dance.reference.duration_s >= 10.0
+    assert all(p.solved.mean() > 0.95 for p in dance.profiles.values())
