@@ -1,7 +1,8 @@
 """G1 whole-body walking references from placo's walk pattern generator.
 
 placo plans footsteps for a commanded velocity (vx, vy, wz), a CoM trajectory (LIPM with ZMP
-constraints in the sole polygons) and swing-foot trajectories; its whole-body kinematics solver
+constraints in the sole polygons, kept in the reference as ``extras["com_plan_w"]`` (T, 3)) and
+swing-foot trajectories; its whole-body kinematics solver
 (feet, CoM and trunk-orientation tasks, upper body held at the standing pose by a joint task) turns
 them into joint trajectories. The IK runs at ``ik_dt_s`` (200 Hz), the reference is kept at
 ``output_fps`` (50 Hz); velocities and accelerations come from
@@ -176,7 +177,7 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
     planning_time = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    fine_q, fine_contacts = [], []
+    fine_q, fine_contacts, fine_com = [], [], []
     num_fine = int(math.floor(trajectory.t_end / cfg.ik_dt_s)) + 1
     for k in range(num_fine):
         t = k * cfg.ik_dt_s
@@ -188,6 +189,7 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
             probot.update_support_side(str(trajectory.support_side(t)))
             probot.ensure_on_floor()
         fine_q.append(probot.state.q.copy())
+        fine_com.append(np.array(trajectory.get_p_world_CoM(t)))
         if both:
             fine_contacts.append((True, True))
         else:
@@ -199,6 +201,8 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
     # Put the initial mid-feet point at the world origin (placo starts elsewhere).
     offset_xy = _mid_feet_xy(robot, fine_q[0])
     fine_q[:, :2] -= offset_xy
+    com_plan_w = np.array(fine_com)
+    com_plan_w[:, :2] -= offset_xy
     fine_q[:, 3:7] /= np.linalg.norm(fine_q[:, 3:7], axis=1, keepdims=True)
     v_fine, a_fine = differentiate(fine_q, cfg.ik_dt_s, cfg.smoothing_window_s, 3, robot)
     stride = int(round(1.0 / (cfg.output_fps * cfg.ik_dt_s)))
@@ -218,6 +222,7 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
         phase_names=WALK_PHASES,
         dt=1.0 / cfg.output_fps,
         name="walk",
+        extras={"com_plan_w": com_plan_w[sel]},
     ).validate()
     steps = np.array(
         [

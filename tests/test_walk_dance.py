@@ -63,6 +63,9 @@ def test_walk_reference_follows_the_command(walk_plan, g1_pin):
     data = g1_pin.data()
     com_z = np.array([pin.centerOfMass(g1_pin.model, data, q)[2] for q in ref.q])
     assert np.all(np.abs(com_z - WalkConfig().com_height_m) < 0.03)
+    # The whole-body CoM follows placo's planned CoM.
+    com = np.array([pin.centerOfMass(g1_pin.model, data, q) for q in ref.q])
+    assert np.abs(com - ref.extras["com_plan_w"]).max() < 0.02
 
 
 def test_walk_turns_with_a_yaw_command(g1_pin):
@@ -103,6 +106,7 @@ def test_oracle_pipeline_on_a_walk_slice(walk_plan, tmp_path):
     art, folder = solve_reference_oracle("walk", ref, cfg, {"note": "slice"})
     loaded = OracleArtifact.load(folder)
     assert loaded.eta0.shape == (2, 6)
+    assert art.novice_profile.solved.all() and loaded.novice_profile.solved.all()
     assert loaded.phase_names == WALK_PHASES
     assert "no video" in loaded.video_note
     summary = json.loads((folder / "oracle.json").read_text())
