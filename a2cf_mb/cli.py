@@ -17,6 +17,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.eval",
     "a2cf_mb.commands.solve_walk",
     "a2cf_mb.commands.solve_dance",
+    "a2cf_mb.commands.solve_backflip",
 )
 
 

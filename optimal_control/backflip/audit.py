@@ -242,10 +242,10 @@ def audit_solution(
             "J, net work done by the ground",
         ),
         "final pitch error": Check(
-            abs(pitch_n + 2 * np.pi),
+            abs(pitch_n - cfg.turn_rad),
             acfg.final_pitch_tol_rad,
-            abs(pitch_n + 2 * np.pi) <= acfg.final_pitch_tol_rad,
-            "rad from -2 pi",
+            abs(pitch_n - cfg.turn_rad) <= acfg.final_pitch_tol_rad,
+            "rad from the turn (-2 pi for a backflip)",
         ),
         "final speed": Check(
             float(np.abs(sol.rd[-1]).max()), 1e-4, np.abs(sol.rd[-1]).max() <= 1e-4, "m/s, rad/s"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 PHASE_NAMES: tuple[str, ...] = ("stand", "crouch", "jump", "air", "land")
@@ -29,31 +30,42 @@ class BackflipConfig:
     crouch_intervals: int = 10  # intervals in Crouch
     jump_intervals: int = 10  # intervals in Jump (push-off)
     air_intervals: int = 24  # intervals in Air
-    land_intervals: int = 14  # intervals in Land
+    land_intervals: int = 16  # intervals in Land
     stand_duration_s: tuple[float, float, float] = (0.06, 0.3, 0.1)  # Stand (min, max, guess) [s]
     crouch_duration_s: tuple[float, float, float] = (0.3, 0.7, 0.5)  # Crouch (min, max, guess) [s]
     jump_duration_s: tuple[float, float, float] = (0.1, 0.5, 0.25)  # Jump (min, max, guess) [s]
     air_duration_s: tuple[float, float, float] = (0.35, 0.8, 0.55)  # Air (min, max, guess) [s]
     land_duration_s: tuple[float, float, float] = (0.3, 0.8, 0.6)  # Land (min, max, guess) [s]
+    turn_rad: float = (
+        -2 * math.pi
+    )  # total base pitch turn: -2 pi = backflip, 0 = vertical jump [rad]
     torque_scale: float = 1.0  # alpha: torque limits are alpha * effort limit [-]
+    held_joint_torque_fraction: float = (
+        0.8  # joints the TO does not move use this share of alpha [-]
+    )
+    max_stance_lean_rad: float = 0.6  # |base pitch| bound on the ground (from 0, or -2 pi) [rad]
     friction_coefficient: float = 0.7  # sole friction pyramid coefficient mu [-]
     max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]
     max_wrench_torque_nm: float = 200.0  # bound on each pelvis wrench torque component [Nm]
     forbid_wrench: bool = False  # if True the pelvis wrench is fixed to zero (no help allowed)
     # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2 [1/s]
     wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)
+    midpoint_constraints: bool = True  # dynamics and torque limits also at interval midpoints
     torque_weight: float = 1e-3  # cost on (tau / tau_max)^2 integrated over time [1/s]
     acceleration_weight: float = 1e-4  # cost on joint accelerations^2 integrated [s^3/rad^2]
-    min_air_pelvis_height_m: float = 0.25  # pelvis origin stays this high in the air [m]
+    min_pelvis_height_m: float = 0.4  # pelvis origin stays this high throughout [m]
+    min_limb_height_m: float = 0.1  # hands and knees stay this high throughout [m]
+    cop_margin: float = 0.15  # heel and toe each carry at least this share of the sole load [-]
     sole_drift_tolerance_m: float = 0.002  # stance soles stay this close to their placement [m]
     min_air_sole_height_m: float = 0.0  # sole corners above the floor in the air [m]
     final_joint_tolerance_rad: float = 0.1  # landed joints within this of the stand pose [rad]
     max_iter: int = 400  # IPOPT iterations per continuation stage [-]
     tol: float = 1e-6  # IPOPT convergence tolerance [-]
+    symbolic: str = "SX"  # NLP graph: "MX" (calls to SX functions) or "SX" (fully inlined)
     hessian: str = "exact"  # IPOPT Hessian: "exact" or "limited-memory"
     print_level: int = 0  # IPOPT print level (0 silent, 5 verbose) [-]
     warm_start: str = ""  # path of a cached solution (npz) to warm-start from; "" = cold
-    cache_dir: str = "~/.cache/a2cf-mb/backflip"  # where solutions are cached for warm starts
+    cache_dir: str = "~/.cache/a2cf-mb/backflip"  # solution cache for warm starts; "" = none
 
     def phases(self) -> tuple[PhaseSpec, ...]:
         """The five phases as :class:`PhaseSpec`, in :data:`PHASE_NAMES` order."""
@@ -91,6 +103,8 @@ class BackflipConfig:
             raise ValueError(f"friction_coefficient must be > 0, got {self.friction_coefficient}.")
         if self.hessian not in ("exact", "limited-memory"):
             raise ValueError(f"hessian must be 'exact' or 'limited-memory', got '{self.hessian}'.")
+        if self.symbolic not in ("MX", "SX"):
+            raise ValueError(f"symbolic must be 'MX' or 'SX', got '{self.symbolic}'.")
         if not self.wrench_weights:
             raise ValueError("wrench_weights needs at least one continuation stage.")
         return self

@@ -1,9 +1,11 @@
 """The symmetric sagittal parameterisation of the full 3-D G1 used by the backflip TO.
 
 A backflip is a left/right-symmetric motion in the sagittal plane. The TO therefore moves
-    r = [x_w, z_w, pitch, hip_pitch, knee, ankle_pitch, waist_pitch, shoulder_pitch, elbow]  (9,)
-(base position in the x-z plane [m], base pitch about the world y axis [rad], and six pitch joints,
-each driving the left and the right joint together). Every other joint is held at the stand pose.
+    r = [x_w, z_w, pitch, hip_pitch, knee, ankle_pitch, shoulder_pitch, elbow]  (8,)
+(base position in the x-z plane [m], base pitch about the world y axis [rad], and five pitch joints,
+each driving the left and the right joint together). Every other joint is held at the stand pose,
+the waist pitch included: when the TO was free to swing the torso it drove the waist (50 Nm) to its
+limit for long stretches and the MuJoCo playback collapsed at the waist.
 The dynamics are not reduced: r maps to the full Pinocchio q (36,), v (35,), a (35,) and the full
 3-D RNEA of :mod:`optimal_control.casadi_dynamics` gives all 35 generalised forces, so held joints
 get their holding torques (bounded like the others) and any out-of-plane base force the asymmetric
@@ -38,7 +40,6 @@ MOVED_JOINTS: tuple[str, ...] = (
     "hip_pitch",
     "knee",
     "ankle_pitch",
-    "waist_pitch",
     "shoulder_pitch",
     "elbow",
 )
@@ -59,7 +60,7 @@ class SagittalModel:
         inverse_dynamics(r, rd, rdd, f (4,)) -> tau (35,)   generalised force rows: [w_b; tau_j]
         sole_points(r) -> (3, 2) world positions of the left heel and toe [m]
         sole_points_velocity(r, rd) -> (3, 2) their world velocities [m/s]
-        pelvis_height(r) -> pelvis origin height [m]
+        clearance_heights(r) -> (2,) heights of the left hand and knee (same as right) [m]
     """
 
     robot: G1Pinocchio  # the G1 with rotor armature on the joint rows (a copy of the shared model)
@@ -69,6 +70,7 @@ class SagittalModel:
     inverse_dynamics: ca.Function
     sole_points: ca.Function
     sole_points_velocity: ca.Function
+    clearance_heights: ca.Function  # r -> (left hand z, left knee z) [m]
     lower_r: np.ndarray  # (NR,) position lower bounds (base entries -inf) [m, rad]
     upper_r: np.ndarray  # (NR,) position upper bounds [m, rad]
     velocity_limit: np.ndarray  # (NR,) speed bounds (base entries inf) [m/s, rad/s]
@@ -170,6 +172,12 @@ def build_sagittal_model() -> SagittalModel:
         "sagittal_inverse_dynamics", [r, rd, rdd, f], [tau], ["r", "rd", "rdd", "f"], ["tau"]
     )
     sole_points = ca.Function("sole_points", [r], [ca.horzcat(*left_pts)], ["r"], ["p_w"])
+    # heights of the parts that could hit the floor in a deep crouch or a tuck: hands and knees
+    knee = model.getJointId("left_knee_joint")
+    _, hand_w = dyn.frame_placement["left_hand"](q)
+    clearance = ca.Function(
+        "clearance_heights", [r], [ca.vertcat(hand_w[2], poss[2, knee])], ["r"], ["z_w"]
+    )
     sole_vel = ca.Function(
         "sole_points_velocity", [r, rd], [ca.horzcat(*vel_pts)], ["r", "rd"], ["v_w"]
     )
@@ -189,6 +197,7 @@ def build_sagittal_model() -> SagittalModel:
         inverse_dynamics=inverse_dynamics,
         sole_points=sole_points,
         sole_points_velocity=sole_vel,
+        clearance_heights=clearance,
         lower_r=lower,
         upper_r=upper,
         velocity_limit=vel,

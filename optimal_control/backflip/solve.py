@@ -109,7 +109,7 @@ def config_key(cfg: BackflipConfig) -> str:
 
 def _solver(tr: Transcription, cfg: BackflipConfig) -> ca.Function:
     opts = {
-        "expand": True,
+        "expand": cfg.symbolic == "SX",
         "print_time": False,
         "ipopt": {
             "print_level": cfg.print_level,

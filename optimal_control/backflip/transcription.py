@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from optimal_control.backflip.config import BackflipConfig
+from optimal_control.backflip.config import AIR_PHASE, BackflipConfig
 from optimal_control.backflip.sagittal import NF, NR, SagittalModel
 
 WRENCH_SCALE = np.array([100.0, 100.0, 100.0, 30.0, 30.0, 30.0])
@@ -84,7 +84,8 @@ class Solution:
     """A (candidate) backflip trajectory on the knot grid; arrays indexed by knot.
 
     r, rd, rdd (N+1, NR); wrench_b (N+1, 6) pelvis wrench in the pelvis frame [N, Nm];
-    force_n (N+1, NF) heel/toe (fx, fz) per foot, zero where no contact; durations_s (5,).
+    force_n (N+1, NF) heel/toe (fx, fz) per foot, zero where no contact; durations_s (5,);
+    wrench_mid_b (N, 6) pelvis wrench at the interval midpoints [N, Nm].
     """
 
     r: np.ndarray
@@ -93,6 +94,7 @@ class Solution:
     wrench_b: np.ndarray
     force_n: np.ndarray
     durations_s: np.ndarray
+    wrench_mid_b: np.ndarray
 
     def dt_per_interval(self, grid: Grid) -> np.ndarray:
         """(N,) time step of each interval [s]."""
@@ -112,6 +114,7 @@ class Solution:
             "wrench_b": self.wrench_b,
             "force_n": self.force_n,
             "durations_s": self.durations_s,
+            "wrench_mid_b": self.wrench_mid_b,
         }
 
     @classmethod
@@ -147,12 +150,13 @@ class Transcription:
                 (sol.wrench_b / WRENCH_SCALE).ravel(),
                 (sol.force_n[fk] / FORCE_SCALE_N).ravel(),
                 sol.durations_s,
+                (sol.wrench_mid_b / WRENCH_SCALE).ravel(),
             ]
         )
 
     def solution(self, x: np.ndarray) -> Solution:
         """:class:`Solution` of a decision vector x."""
-        r, rd, rdd, w_s, f_s, dur = (np.asarray(a) for a in self.unpack(x))
+        r, rd, rdd, w_s, f_s, dur, w_mid = (np.asarray(a) for a in self.unpack(x))
         n = self.grid.num_knots
         force = np.zeros((n, NF))
         force[self.force_knots] = f_s.T * FORCE_SCALE_N
@@ -163,23 +167,31 @@ class Transcription:
             w_s.T * WRENCH_SCALE,
             force,
             dur.ravel(),
+            w_mid.T * WRENCH_SCALE,
         )
 
 
 def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcription:
-    """Build the NLP of ``cfg``; its parameter p (1,) is the pelvis-wrench weight."""
+    """Build the NLP of ``cfg``; its parameter p (1,) is the pelvis-wrench weight.
+
+    The graph is MX with calls to the SX functions of :mod:`.sagittal` (``cfg.symbolic = "MX"``,
+    the default: each function's derivatives are generated once, so building is fast), or fully
+    inlined SX (``"SX"``: slower to build, a little faster per iteration).
+    """
     cfg.validate()
+    SYM = ca.MX if cfg.symbolic == "MX" else ca.SX  # noqa: N806
     grid = make_grid(cfg)
     phases = cfg.phases()
     n = grid.num_knots
     fk = grid.force_knots()
-    r = ca.SX.sym("r", NR, n)
-    rd = ca.SX.sym("rd", NR, n)
-    rdd = ca.SX.sym("rdd", NR, n)
-    w_s = ca.SX.sym("w", 6, n)
-    f_s = ca.SX.sym("f", NF, len(fk))
-    dur = ca.SX.sym("T", len(phases))
-    weight_w = ca.SX.sym("weight_w")
+    r = SYM.sym("r", NR, n)
+    rd = SYM.sym("rd", NR, n)
+    rdd = SYM.sym("rdd", NR, n)
+    w_s = SYM.sym("w", 6, n)
+    f_s = SYM.sym("f", NF, len(fk))
+    dur = SYM.sym("T", len(phases))
+    w_mid = SYM.sym("w_mid", 6, n - 1)
+    weight_w = SYM.sym("weight_w")
     x = ca.vertcat(
         ca.vec(r),
         ca.vec(rd),
@@ -187,9 +199,10 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
         ca.vec(w_s),
         ca.vec(f_s),
         dur,
+        ca.vec(w_mid),
     )
     # note: ca.vec is column-major, so knot k's r is x[k*NR:(k+1)*NR]: matches (n, NR).ravel()
-    unpack = ca.Function("unpack", [x], [r, rd, rdd, w_s, f_s, dur])
+    unpack = ca.Function("unpack", [x], [r, rd, rdd, w_s, f_s, dur, w_mid])
 
     g_rows: list[ca.SX] = []
     lbg: list[np.ndarray] = []
@@ -219,7 +232,7 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     cost = 0.0
     dyn_rows, torque_rows, integ_rows = [], [], []
     for k in range(n):
-        f_k = f_s[:, force_index[k]] * FORCE_SCALE_N if k in force_index else ca.SX.zeros(NF)
+        f_k = f_s[:, force_index[k]] * FORCE_SCALE_N if k in force_index else SYM.zeros(NF)
         tau = model.inverse_dynamics(r[:, k], rd[:, k], rdd[:, k], f_k)
         dyn_rows.append((tau[0:6] - w_s[:, k] * WRENCH_SCALE) / WRENCH_SCALE)
         torque_rows.append(tau[6:] / effort)
@@ -233,8 +246,37 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
             integ_rows.append(
                 r[:, k + 1] - r[:, k] - h * rd[:, k] - h**2 / 6 * (2 * rdd[:, k] + rdd[:, k + 1])
             )
-    add("inverse dynamics (base rows = pelvis wrench)", ca.vertcat(*dyn_rows), 0.0, 0.0)
-    add("torque limits alpha*tau_max", ca.vertcat(*torque_rows), -alpha, alpha)
+            if cfg.midpoint_constraints:
+                # torque limits and dynamics also at the interval midpoint of the interpolant
+                jump = rdd[:, k + 1] - rdd[:, k]
+                rdd_m = rdd[:, k] + jump / 2
+                rd_m = rd[:, k] + h / 2 * rdd[:, k] + h / 8 * jump
+                r_m = r[:, k] + h / 2 * rd[:, k] + h**2 / 8 * rdd[:, k] + h**2 / 48 * jump
+                if grid.phase_of_interval[k] == AIR_PHASE:
+                    f_m = SYM.zeros(NF)
+                else:
+                    f_next = (
+                        f_s[:, force_index[k + 1]] * FORCE_SCALE_N if k + 1 in force_index else 0.0
+                    )
+                    f_m = (f_k + f_next) / 2
+                tau_m = model.inverse_dynamics(r_m, rd_m, rdd_m, f_m)
+                torque_rows.append(tau_m[6:] / effort)
+                # the dynamics hold at the midpoint too, with its own pelvis wrench
+                dyn_rows.append(tau_m[0:6] / WRENCH_SCALE - w_mid[:, k])
+                cost += weight_w * dts[k] * ca.sumsqr(w_mid[:, k])
+    add(
+        "inverse dynamics (base rows = pelvis wrench, knots and midpoints)",
+        ca.vertcat(*dyn_rows),
+        0.0,
+        0.0,
+    )
+    # joints the TO does not move get a fraction of their limit, left to the PD that holds them
+    moved = np.zeros(len(effort), dtype=bool)
+    for cols in model.joint_columns:
+        moved[list(cols)] = True
+    scale = np.where(moved, alpha, alpha * cfg.held_joint_torque_fraction)
+    scale_rows = np.tile(scale, len(torque_rows))
+    add("torque limits alpha*tau_max", ca.vertcat(*torque_rows), -scale_rows, scale_rows)
     add("integration (trapezoidal, linear acceleration)", ca.vertcat(*integ_rows), 0.0, 0.0)
 
     # contact: friction pyramid and unilateral normal force at each heel/toe point
@@ -271,7 +313,7 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
         pts = model.sole_points(r[:, k])
         landed = k > grid.takeoff_knot
         ref = model.sole_points(r[:, grid.touchdown_knot]) if landed else p_stand
-        ref_z = ca.SX.zeros(2) if landed else p_stand[2, :]
+        ref_z = SYM.zeros(2) if landed else p_stand[2, :]
         drift_rows.append(
             ca.vertcat(pts[0, 0] - ref[0, 0], pts[2, 0] - ref_z[0], pts[2, 1] - ref_z[1])
         )
@@ -287,17 +329,23 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     air = range(grid.takeoff_knot + 1, grid.touchdown_knot)
     clear = [model.sole_points(r[:, k])[2, :].T for k in air]
     add("no sole penetration in the air", ca.vertcat(*clear), cfg.min_air_sole_height_m, np.inf)
+    add("pelvis height", r[1, :].T, cfg.min_pelvis_height_m, np.inf)
+    parts = [model.clearance_heights(r[:, k]) for k in range(n)]
+    add("hand and knee clearance", ca.vertcat(*parts), cfg.min_limb_height_m, np.inf)
+    # centre of pressure away from the sole edges: each of heel and toe carries a share
+    c = cfg.cop_margin
+    total = fz[0, :] + fz[1, :]
     add(
-        "pelvis clearance in the air",
-        ca.vertcat(*[r[1, k] for k in air]),
-        cfg.min_air_pelvis_height_m,
+        "centre of pressure inside the sole margin",
+        ca.vertcat(fz[0, :] - c * total, fz[1, :] - c * total).T,
+        0.0,
         np.inf,
     )
 
     # boundary conditions: start at the stand pose at rest, land upright after a full turn at rest
     add("start at rest in the stand pose", ca.vertcat(r[:, 0] - stand, rd[:, 0]), 0.0, 0.0)
-    final = ca.vertcat(rd[:, n - 1], rdd[:, n - 1], r[2, n - 1] + 2 * np.pi)
-    add("land upright after -2*pi pitch, at rest", final, 0.0, 0.0)
+    final = ca.vertcat(rd[:, n - 1], rdd[:, n - 1], r[2, n - 1] - cfg.turn_rad)
+    add("land upright after the full turn, at rest", final, 0.0, 0.0)
     tol = cfg.final_joint_tolerance_rad
     add("landed joints near the stand pose", r[3:, n - 1] - stand[3:], -tol, tol)
 
@@ -305,7 +353,12 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     inf = np.inf
     lb_r = np.tile(np.where(np.isfinite(model.lower_r), model.lower_r, -inf), (n, 1))
     ub_r = np.tile(np.where(np.isfinite(model.upper_r), model.upper_r, inf), (n, 1))
-    lb_r[:, 2], ub_r[:, 2] = -2 * np.pi - 1.0, 1.0
+    lb_r[:, 2], ub_r[:, 2] = min(0.0, cfg.turn_rad) - 1.0, max(0.0, cfg.turn_rad) + 1.0
+    lean = cfg.max_stance_lean_rad
+    lb_r[: grid.takeoff_knot + 1, 2] = -lean
+    ub_r[: grid.takeoff_knot + 1, 2] = lean
+    lb_r[grid.touchdown_knot :, 2] = cfg.turn_rad - lean
+    ub_r[grid.touchdown_knot :, 2] = cfg.turn_rad + lean
     vel = np.where(np.isfinite(model.velocity_limit), model.velocity_limit, inf)
     lb_rd, ub_rd = np.tile(-vel, (n, 1)), np.tile(vel, (n, 1))
     lb_rdd, ub_rdd = np.full((n, NR), -inf), np.full((n, NR), inf)
@@ -317,11 +370,28 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     ub_f = np.full((len(fk), NF), inf)
     lb_t = np.array([p.min_duration_s for p in phases])
     ub_t = np.array([p.max_duration_s for p in phases])
+    lb_wm, ub_wm = np.tile(-w_hi, (n - 1, 1)), np.tile(w_hi, (n - 1, 1))
     lbx = np.concatenate(
-        [lb_r.ravel(), lb_rd.ravel(), lb_rdd.ravel(), lb_w.ravel(), lb_f.ravel(), lb_t]
+        [
+            lb_r.ravel(),
+            lb_rd.ravel(),
+            lb_rdd.ravel(),
+            lb_w.ravel(),
+            lb_f.ravel(),
+            lb_t,
+            lb_wm.ravel(),
+        ]
     )
     ubx = np.concatenate(
-        [ub_r.ravel(), ub_rd.ravel(), ub_rdd.ravel(), ub_w.ravel(), ub_f.ravel(), ub_t]
+        [
+            ub_r.ravel(),
+            ub_rd.ravel(),
+            ub_rdd.ravel(),
+            ub_w.ravel(),
+            ub_f.ravel(),
+            ub_t,
+            ub_wm.ravel(),
+        ]
     )
     return Transcription(
         cfg=cfg,
@@ -340,11 +410,11 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
 
 # ---------------------------------------------------------------- initial guess
 
-# key poses of the moved joints (hip, knee, ankle, waist, shoulder, elbow pitch) [rad]
-_CROUCH = np.array([-1.2, 2.0, -0.8, 0.2, 0.8, 0.3])
-_TAKEOFF = np.array([-0.1, 0.1, 0.3, -0.2, -2.5, 0.2])
-_TUCK = np.array([-2.2, 2.5, -0.3, 0.4, -1.0, 1.2])
-_LAND = np.array([-0.9, 1.6, -0.7, 0.2, 0.5, 0.6])
+# key poses of the moved joints (hip, knee, ankle, shoulder, elbow pitch) [rad]
+_CROUCH = np.array([-1.2, 2.0, -0.8, 0.8, 0.3])
+_TAKEOFF = np.array([-0.1, 0.1, 0.3, -2.5, 0.2])
+_TUCK = np.array([-2.2, 2.5, -0.3, -1.0, 1.2])
+_LAND = np.array([-0.9, 1.6, -0.7, 0.5, 0.6])
 
 
 def _stance_base_solver(model: SagittalModel, target: np.ndarray):
@@ -405,7 +475,7 @@ def initial_guess(model: SagittalModel, cfg: BackflipConfig) -> Solution:
     for k in grid.fixed_sole_knots():
         r[k, :3] = place_base(joints[k])
         if k > grid.takeoff_knot:
-            r[k, 2] -= 2 * np.pi  # landed after a full backward turn
+            r[k, 2] += cfg.turn_rad  # landed after the turn
     # ballistic base arc through the air, pitch turning uniformly
     k0, k1 = grid.takeoff_knot, grid.touchdown_knot
     t_air = durations[3]
@@ -427,4 +497,4 @@ def initial_guess(model: SagittalModel, cfg: BackflipConfig) -> Solution:
     tau = np.asarray(model.inverse_dynamics.map(n)(r.T, rd.T, rdd.T, force.T)).T
     w_hi = np.array([cfg.max_wrench_force_n] * 3 + [cfg.max_wrench_torque_nm] * 3)
     wrench = np.clip(tau[:, :6], -w_hi, w_hi)
-    return Solution(r, rd, rdd, wrench, force, durations)
+    return Solution(r, rd, rdd, wrench, force, durations, (wrench[:-1] + wrench[1:]) / 2)

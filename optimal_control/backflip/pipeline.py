@@ -1,0 +1,293 @@
+"""`a2cf-mb solve-backflip`: TO -> audit -> MuJoCo playback -> novice model -> OracleArtifact.
+
+:func:`solve_backflip` is the one library call behind the command. It solves the TO (cold, or
+warm-started from ``--warm-start`` or from the cache of the same problem), audits the solution
+(:mod:`.audit`; a failing solution is saved as ``failed_solution.npz`` with ``audit.json`` and an
+error is raised, nothing is shipped), samples it at 50 Hz as the oracle :class:`Reference`, plays
+it back in MuJoCo with and without the pelvis wrench, runs the oracle's alpha sweep (the novice
+model, :mod:`.novice`) and writes the same :class:`OracleArtifact` as walk / dance, with the TO's
+trajectories, phase timings, solver statistics, audit, playback and the eta0-vs-paper table in it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from optimal_control.artifact import OracleArtifact
+from optimal_control.backflip.audit import AuditConfig, AuditReport, audit_solution
+from optimal_control.backflip.config import AIR_PHASE, PHASE_NAMES, BackflipConfig
+from optimal_control.backflip.novice import (
+    NOVICE_MODEL,
+    compare_with_paper,
+    comparison_markdown,
+    momentum_deficit_wrench,
+    takeoff_momentum,
+)
+from optimal_control.backflip.playback import PlaybackConfig, play_back
+from optimal_control.backflip.sagittal import MOVED_JOINTS, build_sagittal_model
+from optimal_control.backflip.solve import (
+    SolveResult,
+    cache_path,
+    save_solution,
+    solve_backflip_to,
+)
+from optimal_control.backflip.trajectory import SampledFlip, sample_solution
+from optimal_control.backflip.transcription import Solution
+from optimal_control.oracle import OracleConfig, default_output_dir, solve_reference_oracle
+
+
+@dataclass(frozen=True)
+class BackflipOracleConfig(OracleConfig):
+    """The oracle options with the backflip's alpha sweep."""
+
+    alphas: tuple[float, ...] = (1.0, 0.5, 0.3)  # torque-limit fractions swept [-]
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """What the pipeline writes and how it samples."""
+
+    rate_hz: float = 50.0  # artifact sample rate [Hz]
+    use_cache: bool = True  # warm-start from the cached solution of the same problem if any
+    playback: bool = True  # run the MuJoCo playback check
+
+
+class BackflipAuditError(RuntimeError):
+    """A solved backflip failed its audit; it was not written as an artifact."""
+
+
+def _phase_table(sol: Solution, grid) -> dict[str, dict[str, float]]:
+    times = sol.knot_times_s(grid)
+    starts = np.concatenate([[0], np.cumsum(grid.intervals)])
+    return {
+        name: {
+            "start_s": float(times[starts[i]]),
+            "duration_s": float(sol.durations_s[i]),
+            "intervals": int(grid.intervals[i]),
+        }
+        for i, name in enumerate(PHASE_NAMES)
+    }
+
+
+def _wrench_per_phase(wrench_w: np.ndarray, phase: np.ndarray) -> dict[str, list[float]]:
+    return {
+        name: (np.abs(wrench_w[phase == p]).max(axis=0).tolist() if np.any(phase == p) else None)
+        for p, name in enumerate(PHASE_NAMES)
+    }
+
+
+def write_backflip_plots(flip: SampledFlip, playbacks: dict, folder: Path) -> list[Path]:
+    """Phase-shaded joint torques and TO wrench, pitch angle (reference and MuJoCo playbacks)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    t = flip.time_s
+
+    def shade(ax):
+        for p, name in enumerate(PHASE_NAMES):
+            m = flip.phase == p
+            if np.any(m):
+                ax.axvspan(t[m][0], t[m][-1] + flip.dt_s, color=colors[p], alpha=0.12, label=name)
+
+    from optimal_control.backflip.sagittal import build_sagittal_model as _model
+
+    model = _model()
+    paths = []
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    shade(axes[0])
+    for cols, name in zip(model.joint_columns, MOVED_JOINTS, strict=True):
+        c = cols[0]
+        axes[0].plot(t, flip.tau_nm[:, c] / model.effort_limit_nm[c], label=name)
+    axes[0].set_ylabel("tau / tau_max (left side) [-]")
+    axes[0].legend(fontsize=7, ncol=5)
+    axes[0].grid(alpha=0.3)
+    shade(axes[1])
+    for i, axis in enumerate(("fx", "fy", "fz", "mx", "my", "mz")):
+        axes[1].plot(t, flip.wrench_w[:, i], label=axis)
+    axes[1].set_ylabel("TO pelvis wrench [N, N m]")
+    axes[1].set_xlabel("time [s]")
+    axes[1].legend(fontsize=7, ncol=6)
+    axes[1].grid(alpha=0.3)
+    fig.suptitle("backflip TO: joint torques and pelvis wrench (phases shaded)")
+    fig.tight_layout()
+    paths.append(folder / "backflip_torque_wrench.png")
+    fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    shade(axes[0])
+    axes[0].plot(t, np.degrees(flip.r[:, 2]), "k", label="TO reference")
+    axes[1].plot(t, flip.q[:, 2], "k", label="TO reference")
+    for key, (res, pitch, height, t_sim) in playbacks.items():
+        axes[0].plot(t_sim, np.degrees(pitch), label=f"MuJoCo {key}")
+        axes[1].plot(t_sim, height, label=f"MuJoCo {key} (done: {res.completed_flip})")
+    axes[0].set_ylabel("pelvis pitch [deg]")
+    axes[1].set_ylabel("pelvis height [m]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    paths.append(folder / "backflip_pitch_height.png")
+    fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+    return paths
+
+
+def _playbacks(flip_sim: SampledFlip, cfg: PlaybackConfig, turn_rad: float) -> dict:
+    from robots.conventions import quat_wxyz_to_matrix
+
+    out = {}
+    for with_w in (True, False):
+        res, qpos = play_back(flip_sim, with_w, cfg, turn_rad)
+        rot = quat_wxyz_to_matrix(qpos[:, 3:7])
+        pitch = np.unwrap(np.arctan2(rot[:, 0, 2], rot[:, 2, 2]))
+        t_sim = flip_sim.dt_s * np.arange(1, len(qpos) + 1)
+        out["with_w" if with_w else "without_w"] = (res, pitch, qpos[:, 2], t_sim)
+    return out
+
+
+def solve_backflip(
+    cfg: BackflipConfig = BackflipConfig(),
+    oracle_cfg: OracleConfig = BackflipOracleConfig(),
+    playback_cfg: PlaybackConfig = PlaybackConfig(),
+    out_cfg: OutputConfig = OutputConfig(),
+    audit_cfg: AuditConfig = AuditConfig(),
+) -> tuple[OracleArtifact, Path, dict]:
+    """Solve, audit, check and write the backflip oracle artifact.
+
+    Returns the artifact, its folder and a report dict (solver, audit, playback figures).
+
+    Raises:
+        InfeasibleBackflipError: the TO found no feasible motion (groups named, iterate saved).
+        BackflipAuditError: the solution failed the audit (saved, not shipped).
+    """
+    cfg.validate()
+    folder = Path(oracle_cfg.out) if oracle_cfg.out else default_output_dir("backflip")
+    oracle_cfg = dataclasses.replace(oracle_cfg, out=str(folder))
+    model = build_sagittal_model()
+    warm = None
+    warm_source = cfg.warm_start
+    cached = cache_path(cfg) if cfg.cache_dir else None
+    if not cfg.warm_start and out_cfg.use_cache and cached is not None and cached.is_file():
+        warm = Solution.from_npz(np.load(cached))
+        warm_source = str(cached)
+    t0 = time.perf_counter()
+    result: SolveResult = solve_backflip_to(
+        cfg, model, warm_start=warm, failure_path=folder / "last_iterate.npz"
+    )
+    solve_wall = time.perf_counter() - t0
+    sol = result.solution
+    grid = result.transcription.grid
+    audit: AuditReport = audit_solution(sol, cfg, model, audit_cfg, grid)
+    folder.mkdir(parents=True, exist_ok=True)
+    if not audit.passed:
+        save_solution(sol, folder / "failed_solution.npz")
+        (folder / "audit.json").write_text(json.dumps(audit.to_dict(), indent=2))
+        raise BackflipAuditError(
+            "The solved backflip FAILED its audit and was not written as an artifact:\n  - "
+            + "\n  - ".join(audit.failures())
+            + f"\nSolution and audit saved in {folder} (failed_solution.npz, audit.json)."
+        )
+    if cached is not None:
+        save_solution(sol, cached)
+    save_solution(sol, folder / "solution.npz")
+
+    flip = sample_solution(sol, grid, model, out_cfg.rate_hz)
+    ref = flip.to_reference()
+    playback_report = {}
+    playbacks = {}
+    if out_cfg.playback:
+        flip_sim = sample_solution(sol, grid, model, 1.0 / 0.005)
+        playbacks = _playbacks(flip_sim, playback_cfg, cfg.turn_rad)
+        playback_report = {k: v[0].to_dict() for k, v in playbacks.items()}
+        playback_report["config"] = dataclasses.asdict(playback_cfg)
+
+    k0 = grid.takeoff_knot
+    q_to, v_to, _ = model.to_full(sol.r[k0 : k0 + 1], sol.rd[k0 : k0 + 1], sol.rdd[k0 : k0 + 1])
+    momentum = takeoff_momentum(model.robot.model, q_to[0], v_to[0])
+    flight = float(sol.durations_s[AIR_PHASE])
+    solver = result.stats_dict()
+    solver["wall_time_s"] = solve_wall
+    solver["warm_start_from"] = warm_source or None
+    summary = {
+        "to_config": dataclasses.asdict(cfg),
+        "reduction": {
+            "motion": "left/right symmetric, sagittal (base y = roll = yaw = 0); full 3-D dynamics",
+            "moved_joints": list(MOVED_JOINTS),
+            "held_joints": "all others at the stand pose (their holding torques are bounded)",
+            "contact": "heel and toe points per sole on the centre line, same force on both feet",
+        },
+        "phases": _phase_table(sol, grid),
+        "solver": solver,
+        "audit": audit.to_dict(),
+        "playback": playback_report,
+        "to_wrench_max_per_phase_w": _wrench_per_phase(flip.wrench_w, flip.phase),
+        "takeoff_momentum": momentum,
+        "momentum_deficit_air_wrench": momentum_deficit_wrench(
+            momentum, flight, tuple(sorted(set(oracle_cfg.alphas), reverse=True))
+        ),
+    }
+    arrays = {
+        "to_tau_nm": flip.tau_nm,
+        "to_sole_force_n": flip.force_n,
+        "to_wrench_w": flip.wrench_w,
+        "to_pitch_rad": flip.r[:, 2],
+        "knot_r": sol.r,
+        "knot_rd": sol.rd,
+        "knot_rdd": sol.rdd,
+        "knot_force_n": sol.force_n,
+        "knot_wrench_b": sol.wrench_b,
+        "phase_durations_s": sol.durations_s,
+    }
+    art, folder = solve_reference_oracle("backflip", ref, oracle_cfg, summary, arrays, NOVICE_MODEL)
+    cmp = compare_with_paper(art.eta0, PHASE_NAMES)
+    art.extra_summary["eta0_vs_paper"] = cmp
+    for alpha in sorted(art.profiles, reverse=True):
+        prof = art.profiles[alpha]
+        art.extra_summary.setdefault("novice_wrench_max_per_phase_w", {})[f"{alpha:.2f}"] = (
+            _wrench_per_phase(prof.wrench_w, ref.phase)
+        )
+    art.save(folder)
+    (folder / "eta0_vs_paper.md").write_text(comparison_markdown(cmp) + "\n")
+    write_backflip_plots(flip, playbacks, folder / "plots")
+    report = {"solver": solver, "audit": audit.to_dict(), "playback": playback_report}
+    return art, folder, report
+
+
+def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> str:
+    """Terminal summary: solve, audit, playback, eta0 table."""
+    s = report["solver"]
+    a = report["audit"]
+    lines = [
+        f"backflip artifact: {folder}",
+        f"  TO: {s['total_iterations']} IPOPT iterations, {s['solve_time_s']:.1f} s IPOPT + "
+        f"{s['build_time_s']:.1f} s build ({'warm' if s['warm_started'] else 'cold'} start), "
+        f"{s['num_variables']} variables, max violation {s['max_violation']:.1e}",
+        f"  audit: {'PASSED' if a['passed'] else 'FAILED'}; energy dE {a['energy_total_j']['delta_energy']:.1f} J "
+        f"= joints {a['energy_total_j']['joint_work']:.1f} + wrench "
+        f"{a['energy_total_j']['wrench_work']:.2f} + contacts {a['energy_total_j']['contact_work']:.2e} "
+        f"(error {a['energy_total_j']['balance_error']:.1f} J)",
+    ]
+    for key, pb in report["playback"].items():
+        if key == "config":
+            continue
+        lines.append(
+            f"  MuJoCo playback {key}: flip completed {pb['completed_flip']}, final pitch "
+            f"{np.degrees(pb['final_pitch_rad']):.0f} deg, max pitch error "
+            f"{np.degrees(pb['max_pitch_error_rad']):.0f} deg, max height error "
+            f"{pb['max_height_error_m']:.2f} m"
+        )
+    lines.append(comparison_markdown(art.extra_summary["eta0_vs_paper"]))
+    lines.append(f"  video: {art.video or art.video_note}")
+    return "\n".join(lines)
