@@ -190,3 +190,10 @@ def test_assist_dimensions_get_their_own_initial_std() -> None:
     std = actor.output_std[0]
     torch.testing.assert_close(std[:29], torch.full((29,), 0.5))
     torch.testing.assert_close(std[29:], torch.full((6,), 1.5))
+
+
+def test_assist_head_starts_neutral() -> None:
+    actor = make_actor()
+    mean = actor(make_obs(64, seed=5))
+    assert mean[:, 29:].abs().max() < 0.05  # tanh(raw) ~ 0: no systematic push before learning
+    assert mean[:, :29].abs().max() > 0.05  # the motion head keeps rsl-rl's default init

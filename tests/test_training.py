@@ -169,3 +169,18 @@ def test_stand_return_rises_in_a_short_cpu_run(tmp_path) -> None:
     )
     assert last_return > first_return
     assert last_length > first_length
+
+
+def test_curriculum_shrinks_an_unused_bound_in_real_training(tmp_path) -> None:
+    # A near-silent assist head (std 0.02 before tanh) applies far less than half the bound:
+    # Algorithm 1 must shrink eta by (1 - delta) after every iteration.
+    ppo = dataclasses.replace(TINY_PPO, assist_init_noise_std=0.02)
+    result = train(tiny_config(tmp_path, "a2cf", ppo=ppo), verbose=False)
+    log = read_jsonl(result.run_dir / CURRICULUM_LOG)
+    eta0 = torch.tensor(PAPER_INITIAL_BOUNDS["stand"])
+    for k, line in enumerate(log, start=1):
+        assert line["applied_norm"][0] < 0.5 * float(
+            torch.linalg.vector_norm(eta0 * 0.8 ** (k - 1))
+        )
+        torch.testing.assert_close(torch.tensor(line["eta"]), eta0 * 0.8**k)
+    assert log[-1]["assist_enabled"]

@@ -31,6 +31,9 @@ from rl.agents.vae import HistoryEncoder
 ASSIST_ACTION_DIM = 6
 """Raw assist-head outputs: force x, y, z then moment x, y, z (squashed and bounded by the env)."""
 
+ASSIST_OUTPUT_INIT_SCALE = 0.01
+"""Scale of the assist head's last-layer initial weights (near-zero initial mean wrench)."""
+
 
 class JointActionHeads(nn.Module):
     """Motion MLP on the first ``motion_input_dim`` features, assist MLP on the first
@@ -61,6 +64,13 @@ class JointActionHeads(nn.Module):
             if assist_input_dim is not None
             else None
         )
+        if self.assist is not None:
+            # The assist agent starts neutral: mean wrench ~0 in every state, so the early wrench
+            # is exploration noise (its std) rather than an arbitrary state-dependent push.
+            last = self.assist[-1]
+            with torch.no_grad():
+                last.weight.mul_(ASSIST_OUTPUT_INIT_SCALE)
+                last.bias.zero_()
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
         """(..., F) features -> (..., 29) or (..., 35) head outputs."""
