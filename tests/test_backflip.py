@@ -151,3 +151,17 @@ def test_full_backflip_solves_audits_and_needs_little_help(model):
     assert report.passed, report.failures()
     assert abs(result.solution.r[-1, 2] + 2 * np.pi) < 1e-6
     assert report.extra["flight_time_s"] > 0.3
+
+
+def test_eta0_comparison_with_the_paper_table():
+    from optimal_control.backflip.config import PHASE_NAMES
+    from optimal_control.backflip.novice import compare_with_paper, comparison_markdown
+    from optimal_control.bounds import PAPER_ETA0
+
+    paper = np.asarray(PAPER_ETA0["backflip"]["all"])
+    same = compare_with_paper(paper, PHASE_NAMES)
+    assert all(v["same_pattern"] for v in same["axes"].values())
+    assert same["axes"]["fz"]["paper_raised"] == ["jump", "air"]
+    flat = compare_with_paper(np.ones((5, 6)), PHASE_NAMES)
+    assert not flat["axes"]["fz"]["same_pattern"] and flat["axes"]["fx"]["same_pattern"]
+    assert "| fz | jump, air | none (flat) | no |" in comparison_markdown(flat)
