@@ -63,6 +63,7 @@ SLICE_F = slice(0, NF)
 SLICE_W = slice(NF, NF + NW)
 SLICE_TAU = slice(NF + NW, NX)
 _INF = 1e20  # proxsuite treats |bound| >= 1e20 as infinite
+_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,7 @@ class FrameSolution:
     solved: bool  # proxsuite converged (False: e.g. alpha too small to hold the limbs at all)
     unaided: bool  # |w| <= unaided_tol: the robot does this frame without help
     iterations: int  # proxsuite iterations
-    warm_started: bool  # the answer came from the warm-started solve (no cold retry)
+    warm_started: bool  # answered by the warm-started solve (False: by a retry)
     status: str  # proxsuite status name
     solve_time_s: float  # model terms + QP time [s]
 
@@ -113,7 +114,7 @@ class WrenchProfile:
     solved: np.ndarray  # (T,) bool, the QP converged
     unaided: np.ndarray  # (T,) bool
     iterations: np.ndarray  # (T,) int
-    warm_started: np.ndarray  # (T,) bool, answered by the warm start (False: cold solve)
+    warm_started: np.ndarray  # (T,) bool, answered by the warm start (False: by a retry)
     solve_time_s: np.ndarray  # (T,) [s]
     status: list[str] = field(default_factory=list)  # (T,) proxsuite status names
 
@@ -366,10 +367,19 @@ class WrenchQP:
             qp = self._qp
             qp.update(A=eq, b=b, l_box=l_box, u_box=u_box, update_preconditioner=False)
             qp.solve()
-            if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
-                qp = None  # a warm start can stall on a contact switch: retry from scratch
-            else:
-                warm = True
+            warm = qp.results.info.status == _SOLVED
+            if not warm:
+                # A warm start sometimes stops on a false infeasibility certificate. Retry on the
+                # same problem from the equality-constrained guess (cheap), then from scratch.
+                qp.settings.initial_guess = (
+                    proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+                )
+                qp.solve()
+                qp.settings.initial_guess = (
+                    proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+                )
+                if qp.results.info.status != _SOLVED:
+                    qp = None
         if qp is None:
             qp = self._cold_solve(eq, b, l_box, u_box)
         x = qp.results.x
