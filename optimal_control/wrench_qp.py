@@ -131,7 +131,7 @@ class WrenchProfile:
             "mean_time_ms": float(1e3 * self.solve_time_s.mean()),
             "max_time_ms": float(1e3 * self.solve_time_s.max()),
             "mean_iterations": float(self.iterations.mean()),
-            "cold_solves": int(np.sum(~self.warm_started)),
+            "warm_start_retries": int(np.sum(~self.warm_started)),
             "max_residual": float(self.residual.max()),
             "solved_fraction": float(self.solved.mean()),
             "unaided_fraction": float(self.unaided.mean()),
