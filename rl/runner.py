@@ -107,6 +107,7 @@ class TrainConfig:
     random_mask_prob: float = 0.2  # zeta, probability of dropping a wrench component [-]
     device: str = "cpu"  # torch device of the learner [-]
     export_onnx: bool = True  # export the motion policy to ONNX at the end [-]
+    random_episode_start: bool = True  # random initial episode counters (spread time-outs) [-]
     ppo: PPOConfig = field(default_factory=PPOConfig)  # PPO hyper-parameters
     model: ModelConfig = field(default_factory=ModelConfig)  # network sizes and VAE weights
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)  # Algorithm 1
@@ -574,7 +575,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
     try:
         if remaining > 0:
             with quiet:
-                runner.learn(remaining)
+                runner.learn(remaining, init_at_random_ep_len=cfg.random_episode_start)
     finally:
         env.close()
 
