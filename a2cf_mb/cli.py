@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMAND_MODULES: tuple[str, ...] = (
@@ -33,14 +34,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+DEBUG_ENV = "A2CF_DEBUG"
+"""Set this environment variable to 1 to get full tracebacks for input errors."""
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the console script; returns the process exit code."""
+    """Entry point of the console script; returns the process exit code.
+
+    Input errors (``ValueError``, ``FileNotFoundError`` raised with a message for the user: a bad
+    flag value, a malformed clip, a missing file) print one clear line instead of a traceback.
+    """
     args = build_parser().parse_args(argv)
     try:
         result = args.func(args)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except (ValueError, FileNotFoundError) as exc:
+        if os.environ.get(DEBUG_ENV) == "1":
+            raise
+        print(f"a2cf-mb {args.command}: error: {exc}", file=sys.stderr)
+        print(f"(set {DEBUG_ENV}=1 for the full traceback)", file=sys.stderr)
+        return 2
     return int(result or 0)
 
 

@@ -48,7 +48,8 @@ def add_config_arguments(
             if field.default_factory is not dataclasses.MISSING
             else None
         )
-        help_text = f"{comments.get(field.name, '')} (default: {default})"
+        # argparse %-formats help strings: escape a literal percent sign.
+        help_text = f"{comments.get(field.name, '')} (default: {default})".replace("%", "%%")
         dest = prefix + field.name
         if kind is bool:
             parser.add_argument(

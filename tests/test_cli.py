@@ -58,3 +58,26 @@ def test_bench_sim_reports_rates_and_ratios(tmp_path, capsys):
         assert results[key + "_steps_per_s"] > 0
     assert "steps/s" in capsys.readouterr().out
     assert "single_stand" in format_results(run_sim_benchmark(SimBenchConfig(4, 8, 1, 1)))
+
+
+def test_input_errors_print_one_clear_line(capsys, monkeypatch):
+    monkeypatch.delenv("A2CF_DEBUG", raising=False)
+    assert main(["train", "--mode", "bogus", "--iterations", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown training mode 'bogus'" in err
+    assert "Traceback" not in err
+
+
+def test_percent_in_a_config_comment_does_not_break_help():
+    import argparse
+    from dataclasses import dataclass
+
+    from a2cf_mb.config_cli import add_config_arguments
+
+    @dataclass
+    class Cfg:
+        margin: float = 1.5  # 95% percentile margin [-]
+
+    parser = argparse.ArgumentParser()
+    add_config_arguments(parser, Cfg)
+    assert "95%" in parser.format_help()
