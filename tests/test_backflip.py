@@ -165,3 +165,33 @@ def test_eta0_comparison_with_the_paper_table():
     flat = compare_with_paper(np.ones((5, 6)), PHASE_NAMES)
     assert not flat["axes"]["fz"]["same_pattern"] and flat["axes"]["fx"]["same_pattern"]
     assert "| fz | jump, air | none (flat) | no |" in comparison_markdown(flat)
+
+
+def test_mapped_mx_transcription_solves_the_hop(model):
+    cfg = dataclasses.replace(TINY_HOP, symbolic="MX")
+    result = solve_backflip_to(cfg, model)
+    assert result.success
+    assert audit_solution(result.solution, cfg, model).passed
+
+
+def test_playback_runs_the_hop_in_mujoco(hop, model):
+    from optimal_control.backflip.playback import PlaybackConfig, play_back
+
+    grid = make_grid(TINY_HOP)
+    with pytest.raises(ValueError, match="MuJoCo step"):
+        play_back(sample_solution(hop.solution, grid, model, 50.0), True)
+    flip = sample_solution(hop.solution, grid, model, 200.0)
+    result, qpos = play_back(
+        flip, False, PlaybackConfig(settle_s=0.2), turn_rad=0.0, gain_scale=3.0
+    )
+    assert qpos.shape == (len(flip.time_s) + 40, 36)
+    assert np.all(np.isfinite(qpos))
+    assert result.gain_scale == 3.0 and not result.with_wrench
+
+    # the push-off works in MuJoCo too: from the bottom of the crouch the pelvis rises by at least
+    # half as much as in the reference
+    def rise(z):
+        low = int(np.argmin(z[: len(flip.time_s)]))
+        return z[low:].max() - z[low]
+
+    assert rise(qpos[:, 2]) > 0.5 * rise(flip.q[:, 2]) > 0.0

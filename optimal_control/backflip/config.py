@@ -33,7 +33,7 @@ class BackflipConfig:
     land_intervals: int = 16  # intervals in Land
     stand_duration_s: tuple[float, float, float] = (0.06, 0.3, 0.1)  # Stand (min, max, guess) [s]
     crouch_duration_s: tuple[float, float, float] = (0.3, 0.7, 0.5)  # Crouch (min, max, guess) [s]
-    jump_duration_s: tuple[float, float, float] = (0.1, 0.5, 0.25)  # Jump (min, max, guess) [s]
+    jump_duration_s: tuple[float, float, float] = (0.15, 0.5, 0.25)  # Jump (min, max, guess) [s]
     air_duration_s: tuple[float, float, float] = (0.35, 0.8, 0.55)  # Air (min, max, guess) [s]
     land_duration_s: tuple[float, float, float] = (0.3, 0.8, 0.6)  # Land (min, max, guess) [s]
     turn_rad: float = (
@@ -43,7 +43,7 @@ class BackflipConfig:
     held_joint_torque_fraction: float = (
         0.8  # joints the TO does not move use this share of alpha [-]
     )
-    max_stance_lean_rad: float = 0.6  # |base pitch| bound on the ground (from 0, or -2 pi) [rad]
+    max_stance_lean_rad: float = 0.35  # |base pitch| bound on the ground (from 0, or -2 pi) [rad]
     friction_coefficient: float = 0.7  # sole friction pyramid coefficient mu [-]
     max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]
     max_wrench_torque_nm: float = 200.0  # bound on each pelvis wrench torque component [Nm]
@@ -61,7 +61,7 @@ class BackflipConfig:
     final_joint_tolerance_rad: float = 0.1  # landed joints within this of the stand pose [rad]
     max_iter: int = 400  # IPOPT iterations per continuation stage [-]
     tol: float = 1e-6  # IPOPT convergence tolerance [-]
-    symbolic: str = "SX"  # NLP graph: "MX" (calls to SX functions) or "SX" (fully inlined)
+    symbolic: str = "SX"  # NLP graph: "SX" (fully inlined) or "MX" (mapped SX functions)
     hessian: str = "exact"  # IPOPT Hessian: "exact" or "limited-memory"
     print_level: int = 0  # IPOPT print level (0 silent, 5 verbose) [-]
     warm_start: str = ""  # path of a cached solution (npz) to warm-start from; "" = cold

@@ -148,12 +148,14 @@ def _playbacks(flip_sim: SampledFlip, cfg: PlaybackConfig, turn_rad: float) -> d
     from robots.conventions import quat_wxyz_to_matrix
 
     out = {}
-    for with_w in (True, False):
-        res, qpos = play_back(flip_sim, with_w, cfg, turn_rad)
-        rot = quat_wxyz_to_matrix(qpos[:, 3:7])
-        pitch = np.unwrap(np.arctan2(rot[:, 0, 2], rot[:, 2, 2]))
-        t_sim = flip_sim.dt_s * np.arange(1, len(qpos) + 1)
-        out["with_w" if with_w else "without_w"] = (res, pitch, qpos[:, 2], t_sim)
+    for gain in cfg.gain_scales:
+        for with_w in (True, False):
+            res, qpos = play_back(flip_sim, with_w, cfg, turn_rad, gain)
+            rot = quat_wxyz_to_matrix(qpos[:, 3:7])
+            pitch = np.unwrap(np.arctan2(rot[:, 0, 2], rot[:, 2, 2]))
+            t_sim = flip_sim.dt_s * np.arange(1, len(qpos) + 1)
+            key = f"gain{gain:g}_{'with' if with_w else 'without'}_w"
+            out[key] = (res, pitch, qpos[:, 2], t_sim)
     return out
 
 
@@ -283,7 +285,8 @@ def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> 
         if key == "config":
             continue
         lines.append(
-            f"  MuJoCo playback {key}: flip completed {pb['completed_flip']}, final pitch "
+            f"  MuJoCo playback {key}: flip completed {pb['completed_flip']}, pitch at the "
+            f"reference end {np.degrees(pb['pitch_at_reference_end_rad']):.0f} deg, final "
             f"{np.degrees(pb['final_pitch_rad']):.0f} deg, max pitch error "
             f"{np.degrees(pb['max_pitch_error_rad']):.0f} deg, max height error "
             f"{pb['max_height_error_m']:.2f} m"

@@ -29,7 +29,9 @@ from robots.standing import with_scaled_gains
 class PlaybackConfig:
     """Options of the MuJoCo playback."""
 
-    gain_scale: float = 1.0  # multiplier of the G1 table PD gains Kp, Kd [-]
+    # multipliers of the G1 table PD gains Kp, Kd, one playback each (with and without w); the
+    # table gains cannot hold even the standing robot open loop (robots/standing.py)
+    gain_scales: tuple[float, ...] = (1.0, 3.0)
     settle_s: float = 1.0  # time simulated after the reference ends, holding the last pose [s]
     upright_cos: float = 0.9  # landed upright: pelvis z axis . world z at least this [-]
     min_pelvis_height_m: float = 0.55  # landed standing: pelvis at least this high [m]
@@ -41,8 +43,11 @@ class PlaybackResult:
     """Outcome of one playback."""
 
     with_wrench: bool  # the TO pelvis wrench was applied
+    gain_scale: float  # multiplier of the table PD gains used
     completed_flip: bool  # turned the full turn (within tolerance), landed upright, standing
-    final_pitch_rad: float  # accumulated pelvis pitch at the end [rad]
+    final_pitch_rad: float  # accumulated pelvis pitch at the end (after settling) [rad]
+    pitch_at_reference_end_rad: float  # accumulated pelvis pitch when the reference ends [rad]
+    height_at_reference_end_m: float  # pelvis height when the reference ends [m]
     final_pelvis_height_m: float  # [m]
     final_upright_cos: float  # pelvis z axis . world z at the end [-]
     max_pitch_error_rad: float  # max |pitch - pitch_ref| along the reference [rad]
@@ -76,6 +81,7 @@ def play_back(
     with_wrench: bool,
     cfg: PlaybackConfig = PlaybackConfig(),
     turn_rad: float = -2 * np.pi,
+    gain_scale: float = 1.0,
 ) -> tuple[PlaybackResult, np.ndarray]:
     """Simulate ``flip`` (sampled at the MuJoCo step) in MuJoCo.
 
@@ -86,7 +92,7 @@ def play_back(
         raise ValueError(
             f"Sample the flip at the MuJoCo step ({model.opt.timestep} s), got {flip.dt_s} s."
         )
-    model = with_scaled_gains(model, cfg.gain_scale)
+    model = with_scaled_gains(model, gain_scale)
     data = mujoco.MjData(model)
     kp = model.actuator_gainprm[:, 0].copy()
     kd = -model.actuator_biasprm[:, 2].copy()
@@ -104,6 +110,7 @@ def play_back(
     effort = g1.EFFORT_LIMIT_NM
     touchdown = int(np.flatnonzero(flip.phase == AIR_PHASE)[-1]) + 1
     at_td = (np.nan, np.nan)
+    at_end = (np.nan, np.nan)
     for t in range(n + settle):
         i = min(t, n - 1)
         q_ref = flip.q[i, 7:]
@@ -128,6 +135,8 @@ def play_back(
             joint_err2.append(np.mean((data.qpos[jq] - flip.q[min(t + 1, n - 1), 7:]) ** 2))
             if t + 1 == touchdown:
                 at_td = (pitch_err[-1], z_err[-1])
+            if t == n - 1:
+                at_end = (turn, float(data.xpos[pelvis][2]))
     del jv
     rot = data.xmat[pelvis].reshape(3, 3)
     upright = float(rot[2, 2])
@@ -139,8 +148,11 @@ def play_back(
     )
     result = PlaybackResult(
         with_wrench=with_wrench,
+        gain_scale=float(gain_scale),
         completed_flip=bool(completed),
         final_pitch_rad=float(turn),
+        pitch_at_reference_end_rad=float(at_end[0]),
+        height_at_reference_end_m=float(at_end[1]),
         final_pelvis_height_m=height,
         final_upright_cos=upright,
         max_pitch_error_rad=float(np.max(pitch_err)),
