@@ -9,29 +9,14 @@ import numpy as np
 import pytest
 
 from optimal_control.backflip.audit import audit_solution
-from optimal_control.backflip.config import AIR_PHASE, BackflipConfig
+from optimal_control.backflip.config import AIR_PHASE, BackflipConfig, tiny_hop_config
 from optimal_control.backflip.sagittal import NR, build_sagittal_model
 from optimal_control.backflip.solve import InfeasibleBackflipError, solve_backflip_to
 from optimal_control.backflip.trajectory import sample_solution, wrench_body_to_world_com
 from optimal_control.backflip.transcription import make_grid
 
 # a small vertical hop (no turn) on a coarse grid: the same NLP, solved in seconds
-TINY_HOP = BackflipConfig(
-    stand_intervals=1,
-    crouch_intervals=4,
-    jump_intervals=4,
-    air_intervals=5,
-    land_intervals=5,
-    turn_rad=0.0,
-    wrench_weights=(10.0,),
-    stand_duration_s=(0.05, 0.1, 0.05),
-    crouch_duration_s=(0.2, 0.3, 0.25),
-    jump_duration_s=(0.1, 0.2, 0.15),
-    air_duration_s=(0.15, 0.3, 0.2),
-    land_duration_s=(0.25, 0.35, 0.3),
-    max_iter=200,
-    cache_dir="",
-)
+TINY_HOP = dataclasses.replace(tiny_hop_config(), max_iter=200, cache_dir="")
 
 
 @pytest.fixture(scope="module")

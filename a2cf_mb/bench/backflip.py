@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from a2cf_mb.bench import register_benchmark
 
 
 @dataclass(frozen=True)
@@ -66,11 +64,11 @@ def _reference_times(num_knots: int, repeats: int) -> dict[str, float]:
 
 def run_backflip_benchmark(cfg: BackflipBenchConfig = BackflipBenchConfig()) -> dict:
     """Cold and warm solves and the reference timing; returns the figures."""
-    from optimal_control.backflip.config import BackflipConfig
+    from optimal_control.backflip.config import BackflipConfig, tiny_hop_config
     from optimal_control.backflip.sagittal import build_sagittal_model
     from optimal_control.backflip.solve import solve_backflip_to
 
-    problem = _tiny_hop() if cfg.tiny else BackflipConfig()
+    problem = tiny_hop_config() if cfg.tiny else BackflipConfig()
     model = build_sagittal_model()
     start = time.perf_counter()
     cold = solve_backflip_to(problem, model)
@@ -105,25 +103,6 @@ def run_backflip_benchmark(cfg: BackflipBenchConfig = BackflipBenchConfig()) -> 
     return out
 
 
-def _tiny_hop():
-    from optimal_control.backflip.config import BackflipConfig
-
-    return BackflipConfig(
-        stand_intervals=1,
-        crouch_intervals=4,
-        jump_intervals=4,
-        air_intervals=5,
-        land_intervals=5,
-        turn_rad=0.0,
-        wrench_weights=(10.0,),
-        stand_duration_s=(0.05, 0.1, 0.05),
-        crouch_duration_s=(0.2, 0.3, 0.25),
-        jump_duration_s=(0.1, 0.2, 0.15),
-        air_duration_s=(0.15, 0.3, 0.2),
-        land_duration_s=(0.25, 0.35, 0.3),
-    )
-
-
 def format_results(res: dict) -> str:
     """Human-readable lines."""
     c, w = res["cold"], res["warm"]
@@ -145,15 +124,11 @@ def format_results(res: dict) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``bench backflip``."""
-    parser = subparsers.add_parser("backflip", help="backflip TO: cold vs warm solve")
-    add_config_arguments(parser, BackflipBenchConfig)
-    parser.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(BackflipBenchConfig, args)
-    results = run_backflip_benchmark(cfg)
-    print(format_results(results))
-    if cfg.output:
-        Path(cfg.output).write_text(json.dumps(results, indent=2))
-    return 0
+    register_benchmark(
+        subparsers,
+        "backflip",
+        "backflip TO: cold vs warm solve",
+        BackflipBenchConfig,
+        run_backflip_benchmark,
+        format_results,
+    )

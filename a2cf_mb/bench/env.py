@@ -17,18 +17,16 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import torch
 from mujoco import rollout
 
+from a2cf_mb.bench import register_benchmark
 from a2cf_mb.bench.sim import SimBenchConfig, _rollout_rate
-from a2cf_mb.config_cli import add_config_arguments, config_from_args
 from rl.envs import G1VecEnv, make_env
 from rl.envs.model import CONTROL_SPEC
 from robots import g1
@@ -175,15 +173,11 @@ def format_results(results: dict) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``bench env``."""
-    parser = subparsers.add_parser("env", help="G1VecEnv steps/s vs the physics alone")
-    add_config_arguments(parser, EnvBenchConfig)
-    parser.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(EnvBenchConfig, args)
-    results = run_env_benchmark(cfg)
-    print(format_results(results))
-    if cfg.output:
-        Path(cfg.output).write_text(json.dumps(results, indent=2))
-    return 0
+    register_benchmark(
+        subparsers,
+        "env",
+        "G1VecEnv steps/s vs the physics alone",
+        EnvBenchConfig,
+        run_env_benchmark,
+        format_results,
+    )

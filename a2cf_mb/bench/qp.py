@@ -12,15 +12,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from a2cf_mb.bench import register_benchmark
 
 
 @dataclass(frozen=True)
@@ -131,15 +129,11 @@ def format_results(results: dict) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``bench qp``."""
-    parser = subparsers.add_parser("qp", help="wrench QP ms/frame vs pinocchio rnea")
-    add_config_arguments(parser, QPBenchConfig)
-    parser.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(QPBenchConfig, args)
-    results = run_qp_benchmark(cfg)
-    print(format_results(results))
-    if cfg.output:
-        Path(cfg.output).write_text(json.dumps(results, indent=2))
-    return 0
+    register_benchmark(
+        subparsers,
+        "qp",
+        "wrench QP ms/frame vs pinocchio rnea",
+        QPBenchConfig,
+        run_qp_benchmark,
+        format_results,
+    )

@@ -10,17 +10,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from a2cf_mb.bench import register_benchmark
 from robots import g1
 from robots.mujoco_model import build_mujoco_model, stand_data
 
@@ -117,15 +115,11 @@ def format_results(results: dict) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``bench sim``."""
-    parser = subparsers.add_parser("sim", help="raw MuJoCo G1 physics steps/s")
-    add_config_arguments(parser, SimBenchConfig)
-    parser.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(SimBenchConfig, args)
-    results = run_sim_benchmark(cfg)
-    print(format_results(results))
-    if cfg.output:
-        Path(cfg.output).write_text(json.dumps(results, indent=2))
-    return 0
+    register_benchmark(
+        subparsers,
+        "sim",
+        "raw MuJoCo G1 physics steps/s",
+        SimBenchConfig,
+        run_sim_benchmark,
+        format_results,
+    )

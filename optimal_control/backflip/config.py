@@ -108,3 +108,22 @@ class BackflipConfig:
         if not self.wrench_weights:
             raise ValueError("wrench_weights needs at least one continuation stage.")
         return self
+
+
+def tiny_hop_config() -> BackflipConfig:
+    """A small vertical hop (no turn) on a coarse grid: the same NLP as the flip, solved in
+    seconds; used by the quick benchmark and the tests."""
+    return BackflipConfig(
+        stand_intervals=1,
+        crouch_intervals=4,
+        jump_intervals=4,
+        air_intervals=5,
+        land_intervals=5,
+        turn_rad=0.0,
+        wrench_weights=(10.0,),
+        stand_duration_s=(0.05, 0.1, 0.05),
+        crouch_duration_s=(0.2, 0.3, 0.25),
+        jump_duration_s=(0.1, 0.2, 0.15),
+        air_duration_s=(0.15, 0.3, 0.2),
+        land_duration_s=(0.25, 0.35, 0.3),
+    )
