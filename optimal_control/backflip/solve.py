@@ -100,10 +100,23 @@ def constraint_violations(tr: Transcription, x: np.ndarray, g: np.ndarray) -> di
     return out
 
 
+def _problem_source_digest() -> str:
+    """Digest of the code that defines the NLP, so a cached solution of an older transcription
+    is never taken for the current problem's."""
+    here = Path(__file__).resolve().parent
+    files = sorted(here.glob("*.py")) + [here.parent / "casadi_dynamics.py"]
+    digest = hashlib.sha1()
+    for path in files:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def config_key(cfg: BackflipConfig) -> str:
-    """Hash of the fields that define the problem (not solver or I/O options)."""
+    """Hash of the fields that define the problem (not solver or I/O options) and of the code
+    that builds it."""
     skip = {"max_iter", "tol", "print_level", "warm_start", "cache_dir", "hessian"}
     data = {k: v for k, v in asdict(cfg).items() if k not in skip}
+    data["_source"] = _problem_source_digest()
     return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
 
 
