@@ -180,3 +180,24 @@ def test_playback_runs_the_hop_in_mujoco(hop, model):
         return z[low:].max() - z[low]
 
     assert rise(qpos[:, 2]) > 0.5 * rise(flip.q[:, 2]) > 0.0
+
+
+def test_flight_alone_follows_the_reference_and_diagnostics_are_reported(hop, model):
+    """The Air phase played from the reference take-off state (contacts off) stays on the
+    reference: flight modelling (inertias, armature, torque timing, wrench convention) agrees."""
+    from optimal_control.backflip.playback import PlaybackConfig, play_back, play_flight
+
+    flip = sample_solution(hop.solution, make_grid(TINY_HOP), model, 200.0)
+    flight = play_flight(flip, True, PlaybackConfig(), gain_scale=3.0)
+    assert abs(flight.pitch_error_at_touchdown_rad) < 0.05
+    assert abs(flight.height_error_at_touchdown_m) < 0.02
+    assert flight.max_joint_error_rad < 0.1
+    result, _ = play_back(flip, True, PlaybackConfig(settle_s=0.0), turn_rad=0.0, gain_scale=3.0)
+    assert np.isfinite(result.takeoff_ang_momentum_y_nms)
+    assert np.isfinite(result.ref_takeoff_ang_momentum_y_nms)
+    # the hop takes off upwards in both
+    assert result.ref_takeoff_com_velocity_xz_mps[1] > 0.0
+    assert result.takeoff_com_velocity_xz_mps[1] > 0.0
+    assert set(result.to_dict()) >= {"takeoff_ang_momentum_y_nms", "completed_flip"}
+    with pytest.raises(ValueError, match="contact_timeconst_s"):
+        play_back(flip, True, PlaybackConfig(contact_timeconst_s=0.001), turn_rad=0.0)

@@ -29,7 +29,7 @@ from optimal_control.backflip.novice import (
     momentum_deficit_wrench,
     takeoff_momentum,
 )
-from optimal_control.backflip.playback import PlaybackConfig, play_back
+from optimal_control.backflip.playback import PlaybackConfig, play_back, play_flight
 from optimal_control.backflip.sagittal import MOVED_JOINTS, build_sagittal_model
 from optimal_control.backflip.solve import (
     SolveResult,
@@ -159,6 +159,17 @@ def _playbacks(flip_sim: SampledFlip, cfg: PlaybackConfig, turn_rad: float) -> d
     return out
 
 
+def _flight_checks(flip_sim: SampledFlip, cfg: PlaybackConfig) -> dict:
+    """:func:`play_flight` (Air phase alone, from the reference take-off state) per gain and w."""
+    return {
+        f"gain{gain:g}_{'with' if with_w else 'without'}_w": play_flight(
+            flip_sim, with_w, cfg, gain
+        ).to_dict()
+        for gain in cfg.gain_scales
+        for with_w in (True, False)
+    }
+
+
 def solve_backflip(
     cfg: BackflipConfig = BackflipConfig(),
     oracle_cfg: OracleConfig = BackflipOracleConfig(),
@@ -213,6 +224,7 @@ def solve_backflip(
         flip_sim = sample_solution(sol, grid, model, 1.0 / 0.005)
         playbacks = _playbacks(flip_sim, playback_cfg, cfg.turn_rad)
         playback_report = {k: v[0].to_dict() for k, v in playbacks.items()}
+        playback_report["flight_only"] = _flight_checks(flip_sim, playback_cfg)
         playback_report["config"] = dataclasses.asdict(playback_cfg)
 
     k0 = grid.takeoff_knot
@@ -282,14 +294,21 @@ def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> 
         f"(error {a['energy_total_j']['balance_error']:.1f} J)",
     ]
     for key, pb in report["playback"].items():
-        if key == "config":
+        if key in ("config", "flight_only"):
             continue
         lines.append(
             f"  MuJoCo playback {key}: flip completed {pb['completed_flip']}, pitch at the "
             f"reference end {np.degrees(pb['pitch_at_reference_end_rad']):.0f} deg, final "
             f"{np.degrees(pb['final_pitch_rad']):.0f} deg, max pitch error "
             f"{np.degrees(pb['max_pitch_error_rad']):.0f} deg, max height error "
-            f"{pb['max_height_error_m']:.2f} m"
+            f"{pb['max_height_error_m']:.2f} m; take-off L_y "
+            f"{pb['takeoff_ang_momentum_y_nms']:.1f} (TO {pb['ref_takeoff_ang_momentum_y_nms']:.1f})"
+            f" N m s, waist pitch error {pb['max_waist_pitch_error_before_takeoff_rad']:.2f} rad"
+        )
+    for key, fl in report["playback"].get("flight_only", {}).items():
+        lines.append(
+            f"  MuJoCo flight only (from the TO take-off state, no contacts) {key}: pitch error "
+            f"at touch-down {np.degrees(fl['pitch_error_at_touchdown_rad']):.1f} deg"
         )
     lines.append(comparison_markdown(art.extra_summary["eta0_vs_paper"]))
     lines.append(f"  video: {art.video or art.video_note}")
