@@ -185,7 +185,12 @@ def test_playback_runs_the_hop_in_mujoco(hop, model):
 def test_flight_alone_follows_the_reference_and_diagnostics_are_reported(hop, model):
     """The Air phase played from the reference take-off state (contacts off) stays on the
     reference: flight modelling (inertias, armature, torque timing, wrench convention) agrees."""
-    from optimal_control.backflip.playback import PlaybackConfig, play_back, play_flight
+    from optimal_control.backflip.playback import (
+        PlaybackConfig,
+        air_inverse_dynamics_gap_nm,
+        play_back,
+        play_flight,
+    )
 
     flip = sample_solution(hop.solution, make_grid(TINY_HOP), model, 200.0)
     flight = play_flight(flip, True, PlaybackConfig(), gain_scale=3.0)
@@ -199,5 +204,9 @@ def test_flight_alone_follows_the_reference_and_diagnostics_are_reported(hop, mo
     assert result.ref_takeoff_com_velocity_xz_mps[1] > 0.0
     assert result.takeoff_com_velocity_xz_mps[1] > 0.0
     assert set(result.to_dict()) >= {"takeoff_ang_momentum_y_nms", "completed_flip"}
+    # MuJoCo's inverse dynamics of the sampled flight equals the TO torques (same model, frames,
+    # armature and wrench convention)
+    gap = air_inverse_dynamics_gap_nm(flip)
+    assert len(gap) > 10 and np.median(gap) < 1e-6
     with pytest.raises(ValueError, match="contact_timeconst_s"):
         play_back(flip, True, PlaybackConfig(contact_timeconst_s=0.001), turn_rad=0.0)

@@ -29,7 +29,13 @@ from optimal_control.backflip.novice import (
     momentum_deficit_wrench,
     takeoff_momentum,
 )
-from optimal_control.backflip.playback import PlaybackConfig, play_back, play_flight
+from optimal_control.backflip.playback import (
+    PlaybackConfig,
+    air_inverse_dynamics_gap_nm,
+    play_back,
+    play_flight,
+    reference_centroidal,
+)
 from optimal_control.backflip.sagittal import MOVED_JOINTS, build_sagittal_model
 from optimal_control.backflip.solve import (
     SolveResult,
@@ -124,19 +130,26 @@ def write_backflip_plots(flip: SampledFlip, playbacks: dict, folder: Path) -> li
     fig.savefig(paths[-1], dpi=90)
     plt.close(fig)
 
-    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
-    shade(axes[0])
+    fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
+    for ax in axes:
+        shade(ax)
     axes[0].plot(t, np.degrees(flip.r[:, 2]), "k", label="TO reference")
     axes[1].plot(t, flip.q[:, 2], "k", label="TO reference")
-    for key, (res, pitch, height, t_sim) in playbacks.items():
+    axes[2].plot(t, reference_centroidal(flip)[0], "k", label="TO reference")
+    axes[3].axhline(0.0, color="k", lw=0.8)
+    for key, (res, pitch, height, t_sim, log) in playbacks.items():
         axes[0].plot(t_sim, np.degrees(pitch), label=f"MuJoCo {key}")
         axes[1].plot(t_sim, height, label=f"MuJoCo {key} (done: {res.completed_flip})")
+        axes[2].plot(t_sim, log["ang_momentum_y_nms"], label=f"MuJoCo {key}")
+        axes[3].plot(t_sim, np.degrees(log["waist_pitch_error_rad"]), label=f"MuJoCo {key}")
     axes[0].set_ylabel("pelvis pitch [deg]")
     axes[1].set_ylabel("pelvis height [m]")
-    axes[1].set_xlabel("time [s]")
+    axes[2].set_ylabel("centroidal L_y [N m s]")
+    axes[3].set_ylabel("held waist pitch\nerror [deg]")
+    axes[3].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=6)
     fig.tight_layout()
     paths.append(folder / "backflip_pitch_height.png")
     fig.savefig(paths[-1], dpi=90)
@@ -150,12 +163,13 @@ def _playbacks(flip_sim: SampledFlip, cfg: PlaybackConfig, turn_rad: float) -> d
     out = {}
     for gain in cfg.gain_scales:
         for with_w in (True, False):
-            res, qpos = play_back(flip_sim, with_w, cfg, turn_rad, gain)
+            log: dict = {}
+            res, qpos = play_back(flip_sim, with_w, cfg, turn_rad, gain, log=log)
             rot = quat_wxyz_to_matrix(qpos[:, 3:7])
             pitch = np.unwrap(np.arctan2(rot[:, 0, 2], rot[:, 2, 2]))
             t_sim = flip_sim.dt_s * np.arange(1, len(qpos) + 1)
             key = f"gain{gain:g}_{'with' if with_w else 'without'}_w"
-            out[key] = (res, pitch, qpos[:, 2], t_sim)
+            out[key] = (res, pitch, qpos[:, 2], t_sim, log)
     return out
 
 
@@ -225,6 +239,13 @@ def solve_backflip(
         playbacks = _playbacks(flip_sim, playback_cfg, cfg.turn_rad)
         playback_report = {k: v[0].to_dict() for k, v in playbacks.items()}
         playback_report["flight_only"] = _flight_checks(flip_sim, playback_cfg)
+        gap = air_inverse_dynamics_gap_nm(flip_sim)
+        playback_report["air_inverse_dynamics_gap_nm"] = {
+            "median": float(np.median(gap)),
+            "max": float(np.max(gap)),
+            "samples_over_1nm": int(np.sum(gap > 1.0)),
+            "samples": len(gap),
+        }
         playback_report["config"] = dataclasses.asdict(playback_cfg)
 
     k0 = grid.takeoff_knot
@@ -294,7 +315,7 @@ def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> 
         f"(error {a['energy_total_j']['balance_error']:.1f} J)",
     ]
     for key, pb in report["playback"].items():
-        if key in ("config", "flight_only"):
+        if key in ("config", "flight_only", "air_inverse_dynamics_gap_nm"):
             continue
         lines.append(
             f"  MuJoCo playback {key}: flip completed {pb['completed_flip']}, pitch at the "

@@ -17,6 +17,7 @@ torque timing, wrench convention) apart from the push-off.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import asdict, dataclass
 
 import mujoco
@@ -27,7 +28,12 @@ from optimal_control.backflip.config import AIR_PHASE
 from optimal_control.backflip.trajectory import SampledFlip
 from optimal_control.wrench_qp import xfrc_applied_from_pelvis_wrench
 from robots import g1
-from robots.conventions import pin_to_mj_qpos, pin_to_mj_qvel
+from robots.conventions import (
+    pin_to_mj_qpos,
+    pin_to_mj_qvel,
+    quat_wxyz_to_matrix,
+    quat_xyzw_to_wxyz,
+)
 from robots.mujoco_model import build_mujoco_model
 from robots.pinocchio_model import build_pinocchio_model
 from robots.standing import with_scaled_gains
@@ -131,6 +137,37 @@ def _pd_ff_ctrl(flip: SampledFlip, i: int, kp: np.ndarray, kd: np.ndarray, movin
     return flip.q[i, 7:] + (flip.tau_nm[i] + kd * qd_ref) / kp
 
 
+def air_inverse_dynamics_gap_nm(flip: SampledFlip) -> np.ndarray:
+    """Per Air sample, the largest |MuJoCo inverse-dynamics joint torque - TO torque| [N m].
+
+    MuJoCo's ``mj_inverse`` (contacts off, the TO wrench applied at the pelvis CoM) on the sampled
+    reference state and acceleration: zero where the two models and the frame, armature and wrench
+    conventions agree. A sample whose joint lies past a URDF limit (the collocation bounds the knots
+    only) shows MuJoCo's joint-limit force there.
+    """
+    model = copy.deepcopy(build_mujoco_model())
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    data = mujoco.MjData(model)
+    pelvis = model.body(g1.BASE_LINK).id
+    air = np.flatnonzero(flip.phase == AIR_PHASE)
+    gap = np.zeros(len(air))
+    for n_air, i in enumerate(air):
+        q, v, a = flip.q[i], flip.v[i], flip.a[i]
+        data.qpos[:] = pin_to_mj_qpos(q)
+        data.qvel[:] = pin_to_mj_qvel(q, v)
+        rot = quat_wxyz_to_matrix(quat_xyzw_to_wxyz(q[3:7]))
+        qacc = a.copy()
+        # MuJoCo's base linear velocity is R v_b (world): d/dt = R (a_b + omega_b x v_b)
+        qacc[:3] = rot @ (a[:3] + np.cross(v[3:6], v[:3]))
+        data.qacc[:] = qacc
+        mujoco.mj_inverse(model, data)
+        qfrc_w = np.zeros(model.nv)
+        wrench = xfrc_applied_from_pelvis_wrench(flip.wrench_w[i])
+        mujoco.mj_applyFT(model, data, wrench[:3], wrench[3:], data.xipos[pelvis], pelvis, qfrc_w)
+        gap[n_air] = np.max(np.abs(data.qfrc_inverse[6:] - qfrc_w[6:] - flip.tau_nm[i]))
+    return gap
+
+
 @dataclass
 class FlightResult:
     """Outcome of :func:`play_flight` (Air phase only, from the reference take-off state)."""
@@ -199,10 +236,13 @@ def play_back(
     cfg: PlaybackConfig = PlaybackConfig(),
     turn_rad: float = -2 * np.pi,
     gain_scale: float = 1.0,
+    log: dict | None = None,
 ) -> tuple[PlaybackResult, np.ndarray]:
     """Simulate ``flip`` (sampled at the MuJoCo step) in MuJoCo.
 
-    Returns the result and the simulated qpos trajectory (T_sim, 36) (for a video).
+    Returns the result and the simulated qpos trajectory (T_sim, 36) (for a video). If ``log`` is
+    a dict, it receives per-step arrays (T_sim,): ``ang_momentum_y_nms`` (centroidal angular
+    momentum about world y) and ``waist_pitch_error_rad`` (MuJoCo - reference).
     """
     model = build_mujoco_model()
     if abs(flip.dt_s - model.opt.timestep) > 1e-9:
@@ -232,6 +272,8 @@ def play_back(
     at_td = (np.nan, np.nan)
     at_end = (np.nan, np.nan)
     at_takeoff = (np.nan, (np.nan, np.nan))
+    ang_log = np.zeros(n + settle)
+    waist_log = np.zeros(n + settle)
     for t in range(n + settle):
         i = min(t, n - 1)
         data.ctrl[:] = _pd_ff_ctrl(flip, i, kp, kd, t < n)
@@ -246,6 +288,10 @@ def play_back(
         qpos_log[t] = data.qpos
         tau_act = data.actuator_force
         saturated += int(np.sum(np.abs(tau_act) >= effort * (1 - 1e-6)))
+        if log is not None:
+            mujoco.mj_subtreeVel(model, data)
+            ang_log[t] = data.subtree_angmom[pelvis][1]
+            waist_log[t] = data.qpos[7 + waist] - flip.q[min(t + 1, n - 1), 7 + waist]
         if t + 1 <= takeoff:
             waist_err = max(waist_err, abs(data.qpos[7 + waist] - flip.q[t + 1, 7 + waist]))
             waist_sat_steps += int(abs(tau_act[waist]) >= effort[waist] * (1 - 1e-6))
@@ -264,6 +310,9 @@ def play_back(
                 at_td = (pitch_err[-1], z_err[-1])
             if t == n - 1:
                 at_end = (turn, float(data.xpos[pelvis][2]))
+    if log is not None:
+        log["ang_momentum_y_nms"] = ang_log
+        log["waist_pitch_error_rad"] = waist_log
     rot = data.xmat[pelvis].reshape(3, 3)
     upright = float(rot[2, 2])
     height = float(data.xpos[pelvis][2])
