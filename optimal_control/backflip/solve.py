@@ -104,7 +104,8 @@ def _problem_source_digest() -> str:
     """Digest of the code that defines the NLP, so a cached solution of an older transcription
     is never taken for the current problem's."""
     here = Path(__file__).resolve().parent
-    files = sorted(here.glob("*.py")) + [here.parent / "casadi_dynamics.py"]
+    nlp_modules = ("config.py", "sagittal.py", "transcription.py", "solve.py")
+    files = [here / name for name in nlp_modules] + [here.parent / "casadi_dynamics.py"]
     digest = hashlib.sha1()
     for path in files:
         digest.update(path.read_bytes())
