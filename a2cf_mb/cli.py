@@ -9,7 +9,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import pickle
 import sys
+import warnings
+import zipfile
 
 COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.info",
@@ -37,24 +40,69 @@ def build_parser() -> argparse.ArgumentParser:
 DEBUG_ENV = "A2CF_DEBUG"
 """Set this environment variable to 1 to get full tracebacks for input errors."""
 
+USER_ERRORS: tuple[type[BaseException], ...] = (
+    ValueError,  # bad values, malformed files (library errors speak to the user; JSON, Unicode)
+    OSError,  # missing, unreadable or unwritable paths (FileNotFound, Permission, IsADirectory...)
+    zipfile.BadZipFile,  # a junk or truncated .npz / .pt read without a guard
+    EOFError,  # a truncated file
+    pickle.UnpicklingError,  # a truncated or foreign pickle (checkpoints)
+)
+"""Exceptions a user can cause with an input: printed as one line, exit code 2. Anything else is
+a bug and keeps its traceback (exit code 1)."""
+
+USER_ERROR_NAMES: tuple[str, ...] = ("InfeasibleBackflipError", "BackflipAuditError")
+"""Outcomes of a valid run that the user resolves by changing the problem (matched by class name
+so this module does not import the solvers)."""
+
+
+def is_user_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is an input or outcome error to report in one line (see USER_ERRORS)."""
+    return isinstance(exc, USER_ERRORS) or type(exc).__name__ in USER_ERROR_NAMES
+
+
+def user_message(exc: BaseException) -> str:
+    """The line printed for a user error: the library's message, or for a bare OS error the
+    path, the reason and what to check."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        return (
+            f"{exc.strerror}: '{exc.filename}' ({type(exc).__name__}); check the path, that it is "
+            "of the expected kind (file or folder) and its permissions."
+        )
+    if isinstance(exc, zipfile.BadZipFile | EOFError | pickle.UnpicklingError):
+        return (
+            f"a file could not be read ({type(exc).__name__}: {exc}); it is truncated or not of "
+            "the expected format: regenerate it."
+        )
+    return str(exc) or type(exc).__name__
+
+
+def _format_warning(message, category, filename, lineno, line=None) -> str:
+    return f"a2cf-mb: warning: {message}\n"
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code.
 
-    Input errors (``ValueError``, ``FileNotFoundError`` raised with a message for the user: a bad
-    flag value, a malformed clip, a missing file) print one clear line instead of a traceback.
+    User errors (:data:`USER_ERRORS`: a bad flag value, a malformed clip, a missing or unwritable
+    path, a truncated file) print one line on stderr naming the input and what to do, exit code 2;
+    ``A2CF_DEBUG=1`` re-raises them with the traceback. Other exceptions are bugs and propagate
+    with their traceback.
     """
     args = build_parser().parse_args(argv)
+    warnings.formatwarning = _format_warning
     try:
         result = args.func(args)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except (ValueError, FileNotFoundError) as exc:
-        if os.environ.get(DEBUG_ENV) == "1":
+    except Exception as exc:
+        if not is_user_error(exc) or os.environ.get(DEBUG_ENV) == "1":
             raise
-        print(f"a2cf-mb {args.command}: error: {exc}", file=sys.stderr)
-        print(f"(set {DEBUG_ENV}=1 for the full traceback)", file=sys.stderr)
+        print(
+            f"a2cf-mb {args.command}: error: {user_message(exc)} "
+            f"(set {DEBUG_ENV}=1 for the full traceback)",
+            file=sys.stderr,
+        )
         return 2
     return int(result or 0)
 

@@ -9,6 +9,13 @@ A folder::
                     (``extra_*``)
     plots/          wrench_<a>.png (components over time, phases shaded), eta0.png
     reference.mp4   the reference motion rendered with MuJoCo (when rendering was available)
+    manifest.json   every other file with its size [bytes] and sha256, and the code revision;
+                    written last and checked on load, so a partial or mixed folder never loads
+
+The folder is built beside its target and swapped into place as a whole
+(:func:`optimal_control.files.atomic_folder`): a reader sees the old artifact or the new one, and
+no file of an earlier artifact (another task's video or solution) stays beside a new one. Writing
+over an existing artifact needs ``overwrite=True`` (``--overwrite``).
 
 Readers that must not import solver code (``rl``) read ``oracle.json`` only: ``eta0`` is a list of
 per-phase rows ``[fx, fy, fz, mx, my, mz]`` (world-frame force [N] and torque [N m] at the pelvis
@@ -21,20 +28,30 @@ accepts task-specific arrays (``extra_arrays``) and JSON fields (``extra_summary
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
-import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0, BoundRule, envelope_per_phase
+from optimal_control.files import (
+    atomic_folder,
+    atomic_save_npz,
+    atomic_write_json,
+    git_revision,
+    read_npz,
+    recover_folder,
+)
 from optimal_control.reference import Reference
 from optimal_control.wrench_qp import WrenchProfile
 
 ARTIFACT_KIND = "a2cf-mb/oracle"
-ARTIFACT_VERSION = 1
+ARTIFACT_VERSION = 2  # 2: manifest.json with sizes and checksums
 SUMMARY_FILE = "oracle.json"
+MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"
 VIDEO_FILE = "reference.mp4"
 PLOTS_DIR = "plots"
@@ -183,23 +200,48 @@ class OracleArtifact:
         out.update({f"extra_{k}": np.asarray(v) for k, v in self.extra_arrays.items()})
         return out
 
-    def save(self, folder: str | Path, plots: bool = True) -> Path:
-        """Write the artifact to ``folder`` (created); returns its path."""
+    def save(
+        self,
+        folder: str | Path,
+        plots: bool = True,
+        overwrite: bool = False,
+        write_extra: Callable[[OracleArtifact, Path], None] | None = None,
+    ) -> Path:
+        """Write the artifact to ``folder`` as a whole (atomic folder swap); returns its path.
+
+        Args:
+            folder: the artifact folder; it must not exist (or be empty) unless ``overwrite``.
+            plots: also write ``plots/``.
+            overwrite: replace an existing folder (as a whole: never a mix of old and new files).
+            write_extra: called with the artifact and the folder being built, before
+                ``oracle.json`` is written, to add task files (a video, a solution); it may set
+                fields (e.g. :attr:`video`) that go into the summary.
+
+        Raises:
+            OutputExistsError: ``folder`` exists and ``overwrite`` is False.
+        """
         self.validate()
         folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
         self.created_utc = self.created_utc or _dt.datetime.now(_dt.timezone.utc).isoformat()
-        self.git_revision = self.git_revision or _git_revision()
-        np.savez_compressed(folder / ARRAYS_FILE, **self.arrays())
-        if plots:
-            write_plots(self, folder / PLOTS_DIR)
-        (folder / SUMMARY_FILE).write_text(json.dumps(self.summary(), indent=2))
+        revision = git_revision(Path(__file__).resolve().parent)
+        if not self.git_revision and revision["commit"]:
+            self.git_revision = revision["commit"][:12] + ("-dirty" if revision["dirty"] else "")
+        with atomic_folder(folder, overwrite) as tmp:
+            if write_extra is not None:
+                write_extra(self, tmp)
+            atomic_save_npz(tmp / ARRAYS_FILE, self.arrays())
+            if plots:
+                write_plots(self, tmp / PLOTS_DIR)
+            atomic_write_json(tmp / SUMMARY_FILE, self.summary())
+            write_manifest(tmp, revision)
         return folder
 
     @classmethod
     def load(cls, folder: str | Path) -> OracleArtifact:
         """Read and validate an artifact folder written by :meth:`save`."""
         folder = Path(folder)
+        if not folder.exists():
+            recover_folder(folder)  # a replacement killed between its two renames
         summary_path = folder / SUMMARY_FILE
         if not summary_path.is_file():
             raise ArtifactError(
@@ -208,23 +250,29 @@ class OracleArtifact:
             )
         try:
             summary = json.loads(summary_path.read_text())
-        except json.JSONDecodeError as err:
-            raise ArtifactError(f"{summary_path} is not valid JSON: {err}") from err
-        if summary.get("kind") != ARTIFACT_KIND:
-            raise ArtifactError(f"{summary_path}: kind is {summary.get('kind')!r}, not oracle.")
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
+            raise ArtifactError(
+                f"{summary_path} is not valid JSON ({err}); regenerate the artifact."
+            ) from err
+        if not isinstance(summary, dict) or summary.get("kind") != ARTIFACT_KIND:
+            kind = summary.get("kind") if isinstance(summary, dict) else None
+            raise ArtifactError(f"{summary_path}: kind is {kind!r}, not {ARTIFACT_KIND!r}.")
         if summary.get("version") != ARTIFACT_VERSION:
             raise ArtifactError(
                 f"{summary_path}: artifact version {summary.get('version')} but this code reads "
                 f"version {ARTIFACT_VERSION}; regenerate the artifact."
             )
+        verify_manifest(folder)
         for key in ("task", "phase_names", "eta0", "rule", "novice_model", "alphas"):
             if key not in summary:
                 raise ArtifactError(f"{summary_path}: required field '{key}' is missing.")
         arrays_path = folder / ARRAYS_FILE
         if not arrays_path.is_file():
             raise ArtifactError(f"'{folder}': {ARRAYS_FILE} is missing.")
-        with np.load(arrays_path) as npz:
-            arrays = {k: npz[k] for k in npz.files}
+        try:
+            arrays = read_npz(arrays_path, "artifact arrays")
+        except (ValueError, FileNotFoundError) as err:
+            raise ArtifactError(str(err)) from err
         try:
             reference = Reference.from_arrays(
                 arrays, tuple(summary["phase_names"]), summary["reference"]["name"]
@@ -270,18 +318,68 @@ def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchP
     )
 
 
-def _git_revision() -> str:
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def write_manifest(folder: Path, revision: dict | None = None) -> Path:
+    """Write ``manifest.json``: every file under ``folder`` (but itself) with size and sha256.
+
+    ``revision`` is the code revision (:func:`optimal_control.files.git_revision`). Tests that edit
+    an artifact on purpose call this again to seal the edit.
+    """
+    folder = Path(folder)
+    files = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        rel = path.relative_to(folder).as_posix()
+        if rel != MANIFEST_FILE:
+            files[rel] = {"size_bytes": path.stat().st_size, "sha256": _sha256(path)}
+    if revision is None:
+        revision = git_revision(Path(__file__).resolve().parent)
+    return atomic_write_json(
+        folder / MANIFEST_FILE,
+        {
+            "kind": ARTIFACT_KIND,
+            "version": ARTIFACT_VERSION,
+            "code_revision": revision,
+            "files": files,
+        },
+    )
+
+
+def verify_manifest(folder: Path) -> dict:
+    """Check that every file the manifest lists is present, of its size and checksum.
+
+    Returns the manifest. Raises :class:`ArtifactError` naming the first file that differs (a
+    partial or mixed artifact).
+    """
+    folder = Path(folder)
+    path = folder / MANIFEST_FILE
+    regenerate = "the artifact is partial or mixed: regenerate it (solve-* --overwrite)."
+    if not path.is_file():
+        raise ArtifactError(f"'{folder}': {MANIFEST_FILE} is missing; {regenerate}")
     try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=False,
-            cwd=Path(__file__).resolve().parent,
-        )
-    except OSError:
-        return ""
-    return out.stdout.strip()
+        manifest = json.loads(path.read_text())
+        files = manifest["files"]
+        items = [(rel, int(e["size_bytes"]), str(e["sha256"])) for rel, e in files.items()]
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as err:
+        raise ArtifactError(f"{path} is unreadable ({err}); {regenerate}") from err
+    for required in (SUMMARY_FILE, ARRAYS_FILE):
+        if required not in files:
+            raise ArtifactError(f"{path} does not list {required}; {regenerate}")
+    for rel, size, sha in items:
+        file = folder / rel
+        if not file.is_file():
+            raise ArtifactError(f"'{file}' is listed in {MANIFEST_FILE} but missing; {regenerate}")
+        if file.stat().st_size != size or _sha256(file) != sha:
+            raise ArtifactError(
+                f"'{file}' differs from {MANIFEST_FILE} (size or sha256); {regenerate}"
+            )
+    return manifest
 
 
 def _shade_phases(ax, time_s: np.ndarray, phase: np.ndarray, colors) -> None:

@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import ClipConfig, reference_from_configurations
 from optimal_control.reference import Reference
+from optimal_control.validation import require_finite_fields
 from optimal_control.walk import _placo_robot
 from robots import g1
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
@@ -47,6 +48,10 @@ class DanceConfig:
     step_height_m: float = 0.06  # swing-foot apex height [m]
     wave_hz: float = 1.5  # elbow wave frequency [1/s]
     smoothing_window_s: float = 0.1  # Savitzky-Golay window for v and a [s]
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
 
 def _smoothstep(s: np.ndarray) -> np.ndarray:

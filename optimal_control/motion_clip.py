@@ -33,7 +33,9 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation, Slerp
 
+from optimal_control.files import read_npz
 from optimal_control.reference import NQ, Reference
+from optimal_control.validation import require_finite_fields
 from robots import g1
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
 
@@ -57,6 +59,17 @@ class ClipConfig:
     contact_speed_m_s: float = 0.4  # and sole horizontal speed at most this: contact [m/s]
     ground_to_lowest_sole: bool = True  # shift the clip vertically so its lowest sole is at z=0
     max_frames: int = 0  # keep only the first frames after resampling; 0 = all [-]
+    # Plausibility of the base motion between consecutive source frames. A sprinting human peaks
+    # near 10 m/s and a G1 backflip leaves the ground at about 3 m/s; 10 m/s flags a glitch (a
+    # frame at x = 1e12, a 5 m jump: 150 m/s at 30 fps) or centimetres read as metres.
+    max_base_speed_m_s: float = 10.0  # largest base speed between two frames [m/s]
+    # 300 m/s^2 (about 30 g) is above landing impacts (about 3 m/s lost within 1/120 s) and mocap
+    # noise at 120 fps (1 mm jitter: about 30 m/s^2), below a one-frame 0.2 m spike at 30 fps.
+    max_base_acceleration_m_s2: float = 300.0  # largest base acceleration over 3 frames [m/s^2]
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
 
 def read_clip(path: str | Path, cfg: ClipConfig = ClipConfig()) -> tuple[np.ndarray, float]:
@@ -74,9 +87,20 @@ def read_clip(path: str | Path, cfg: ClipConfig = ClipConfig()) -> tuple[np.ndar
             ) from err
         return rows, cfg.source_fps
     if suffix == ".npz":
-        with np.load(path) as npz:
-            keys = set(npz.files)
-            fps = float(npz["fps"]) if "fps" in keys else cfg.source_fps
+        try:
+            npz = read_npz(path, "Motion clip")
+        except ValueError as err:
+            raise ClipError(str(err)) from err
+        keys = set(npz)
+        fps = cfg.source_fps
+        if "fps" in keys:
+            if npz["fps"].size != 1 or not np.issubdtype(npz["fps"].dtype, np.number):
+                raise ClipError(
+                    f"Motion clip '{path}': 'fps' must be one number (frames per second), got "
+                    f"an array of shape {npz['fps'].shape} and dtype {npz['fps'].dtype}."
+                )
+            fps = float(npz["fps"].reshape(()))
+        try:
             if "qpos" in keys:
                 return np.asarray(npz["qpos"], dtype=float), fps
             needed = {"root_pos", "root_quat_xyzw", "joint_pos"}
@@ -87,10 +111,11 @@ def read_clip(path: str | Path, cfg: ClipConfig = ClipConfig()) -> tuple[np.ndar
                 )
             parts = [np.asarray(npz[k], dtype=float) for k in ("root_pos", "root_quat_xyzw")]
             parts.append(np.asarray(npz["joint_pos"], dtype=float))
-            try:
-                return np.concatenate(parts, axis=1), fps
-            except ValueError as err:
-                raise ClipError(f"Motion clip '{path}': arrays do not line up: {err}") from err
+            return np.concatenate(parts, axis=1), fps
+        except (ValueError, TypeError) as err:
+            if isinstance(err, ClipError):
+                raise
+            raise ClipError(f"Motion clip '{path}': arrays do not line up: {err}") from err
     raise ClipError(f"Motion clip '{path}': unknown format '{suffix}'; use .csv or .npz.")
 
 
@@ -109,14 +134,15 @@ def validate_clip(
             f"{source}: expected {NQ} columns per frame (base xyz, quaternion xyzw, "
             f"{g1.NUM_JOINTS} joints), got shape {rows.shape}."
         )
-    if not fps > 0:
-        raise ClipError(f"{source}: frame rate must be > 0, got {fps}.")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ClipError(f"{source}: frame rate must be a finite number > 0, got {fps}.")
     if rows.shape[0] < cfg.min_frames:
         raise ClipError(f"{source}: {rows.shape[0]} frames, at least {cfg.min_frames} are needed.")
     bad = ~np.isfinite(rows)
     if bad.any():
         row, col = (int(i) for i in np.argwhere(bad)[0])
         raise ClipError(f"{source}: NaN/inf at frame {row}, column {col}.")
+    check_base_motion(rows[:, :3], fps, cfg, source)
     norms = np.linalg.norm(rows[:, 3:7], axis=1)
     worst = int(np.argmax(np.abs(norms - 1.0)))
     if abs(norms[worst] - 1.0) > cfg.quat_norm_tolerance:
@@ -140,6 +166,38 @@ def validate_clip(
     out = rows.copy()
     out[:, 3:7] /= norms[:, None]
     return out
+
+
+def check_base_motion(
+    base_w: np.ndarray, fps: float, cfg: ClipConfig = ClipConfig(), source: str = "clip"
+) -> None:
+    """Reject a physically implausible base path (T, 3) [m] sampled at ``fps`` [1/s].
+
+    The speed between consecutive frames must stay below ``cfg.max_base_speed_m_s`` and the
+    second difference (acceleration over three frames) below ``cfg.max_base_acceleration_m_s2``;
+    the message names the first offending frame. Raises :class:`ClipError`.
+    """
+    if base_w.shape[0] < 2:
+        return
+    speed = np.linalg.norm(np.diff(base_w, axis=0), axis=1) * fps
+    k = int(np.argmax(speed))
+    if speed[k] > cfg.max_base_speed_m_s:
+        raise ClipError(
+            f"{source}: the base moves {speed[k] / fps:.3g} m between frames {k} and {k + 1} "
+            f"({speed[k]:.3g} m/s at {fps:g} fps), above the plausible "
+            f"{cfg.max_base_speed_m_s:g} m/s (--clip-max-base-speed-m-s); fix the glitch, check "
+            "that positions are in metres and the frame rate is right."
+        )
+    if base_w.shape[0] < 3:
+        return
+    accel = np.linalg.norm(np.diff(base_w, n=2, axis=0), axis=1) * fps**2
+    k = int(np.argmax(accel))
+    if accel[k] > cfg.max_base_acceleration_m_s2:
+        raise ClipError(
+            f"{source}: base acceleration {accel[k]:.3g} m/s^2 around frame {k + 1} is above the "
+            f"plausible {cfg.max_base_acceleration_m_s2:g} m/s^2 "
+            "(--clip-max-base-acceleration-m-s2); fix the glitch or check the frame rate."
+        )
 
 
 def resample(rows: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:

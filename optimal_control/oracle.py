@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +23,9 @@ import numpy as np
 
 from optimal_control.artifact import VIDEO_FILE, OracleArtifact, build_artifact
 from optimal_control.bounds import BoundRule, envelope_per_phase
+from optimal_control.files import check_output_folder
 from optimal_control.reference import Reference
+from optimal_control.validation import require_finite_fields
 from optimal_control.wrench_qp import WrenchProfile, WrenchQP, WrenchQPConfig
 
 
@@ -43,6 +46,11 @@ class OracleConfig:
     video_height: int = 300  # video height [px]
     progress: bool = True  # show a progress bar over the frames
     out: str = ""  # artifact folder; empty = artifacts/<task>-<UTC timestamp>
+    overwrite: bool = False  # replace an existing --out folder (as a whole, atomically)
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
     def rule(self) -> BoundRule:
         """The eta0 rule of this config."""
@@ -60,6 +68,14 @@ def default_output_dir(task: str) -> Path:
     """``artifacts/<task>-<YYYYmmdd-HHMMSS>`` (UTC) in the working directory."""
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S")
     return Path("artifacts") / f"{task}-{stamp}"
+
+
+def resolve_output(task: str, cfg: OracleConfig) -> OracleConfig:
+    """``cfg`` with its output folder fixed (the timestamped default resolved once) and checked
+    before any work: writable, and not an existing folder unless ``cfg.overwrite``."""
+    folder = Path(cfg.out) if cfg.out else default_output_dir(task)
+    check_output_folder(folder, cfg.overwrite)
+    return dataclasses.replace(cfg, out=str(folder))
 
 
 def sweep_alphas(
@@ -93,11 +109,18 @@ def solve_reference_oracle(
     extra_summary: dict | None = None,
     extra_arrays: dict[str, np.ndarray] | None = None,
     novice_model: str = "",
+    finish: Callable[[OracleArtifact], None] | None = None,
+    write_extra: Callable[[OracleArtifact, Path], None] | None = None,
 ) -> tuple[OracleArtifact, Path]:
-    """Run the sweep along ``ref``, derive eta0, render, save; returns the artifact and folder."""
+    """Run the sweep along ``ref``, derive eta0, render, save; returns the artifact and folder.
+
+    ``finish`` may add summary fields that need eta0 before the artifact is saved; ``write_extra``
+    writes task files into the folder being built (see :meth:`OracleArtifact.save`).
+    """
     if not cfg.alphas:
         raise ValueError("OracleConfig.alphas is empty; give at least one alpha, e.g. 1.0 0.5.")
-    folder = Path(cfg.out) if cfg.out else default_output_dir(task)
+    cfg = resolve_output(task, cfg)
+    folder = Path(cfg.out)
     profiles, timings = sweep_alphas(ref, cfg)
     upper = no_contact_profile(ref, cfg)
     num_phases = len(ref.phase_names)
@@ -109,23 +132,33 @@ def solve_reference_oracle(
     }
     arrays = {"no_contact_wrench_w": upper.wrench_w, **(extra_arrays or {})}
     art = build_artifact(task, ref, profiles, cfg.rule(), novice_model, summary, arrays)
-    folder.mkdir(parents=True, exist_ok=True)
-    if cfg.video:
-        from optimal_control.render import RenderConfig, RenderUnavailableError, render_reference
+    if finish is not None:
+        finish(art)
 
-        try:
-            render_reference(
-                ref,
-                folder / VIDEO_FILE,
-                RenderConfig(width=cfg.video_width, height=cfg.video_height),
-                wrench_w=art.novice_profile.wrench_w,
+    def write_files(art: OracleArtifact, tmp: Path) -> None:
+        if cfg.video:
+            from optimal_control.render import (
+                RenderConfig,
+                RenderUnavailableError,
+                render_reference,
             )
-            art.video = VIDEO_FILE
-        except RenderUnavailableError as err:
-            art.video_note = f"no video: {err}"
-    else:
-        art.video_note = "no video: disabled (--no-video)"
-    art.save(folder)
+
+            try:
+                render_reference(
+                    ref,
+                    tmp / VIDEO_FILE,
+                    RenderConfig(width=cfg.video_width, height=cfg.video_height),
+                    wrench_w=art.novice_profile.wrench_w,
+                )
+                art.video = VIDEO_FILE
+            except RenderUnavailableError as err:
+                art.video_note = f"no video: {err}"
+        else:
+            art.video_note = "no video: disabled (--no-video)"
+        if write_extra is not None:
+            write_extra(art, tmp)
+
+    art.save(folder, overwrite=cfg.overwrite, write_extra=write_files)
     return art, folder
 
 
@@ -134,6 +167,7 @@ def solve_walk(walk_cfg=None, cfg: OracleConfig = OracleConfig()) -> tuple[Oracl
     from optimal_control.walk import WalkConfig, plan_walk
 
     walk_cfg = walk_cfg or WalkConfig()
+    cfg = resolve_output("walk", cfg)
     start = time.perf_counter()
     plan = plan_walk(walk_cfg)
     ref_time = time.perf_counter() - start
@@ -158,6 +192,7 @@ def solve_dance(
     from optimal_control.dance import DanceConfig, built_in_dance, pose_summary
     from optimal_control.motion_clip import ClipConfig, load_motion_clip
 
+    cfg = resolve_output("dance", cfg)
     start = time.perf_counter()
     if clip:
         clip_cfg = clip_cfg or ClipConfig()

@@ -25,6 +25,7 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import differentiate
 from optimal_control.reference import Reference
+from optimal_control.validation import require_finite_fields
 from robots import g1
 from robots.assets import g1_urdf_path
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
@@ -54,6 +55,10 @@ class WalkConfig:
     max_step_lateral_m: float = 0.15  # footstep limit sideways [m]
     max_step_yaw_rad: float = 0.5  # footstep yaw limit [rad]
     smoothing_window_s: float = 0.1  # Savitzky-Golay window for v and a [s]
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
 
 def placo_urdf_text(urdf_path: Path | None = None) -> str:
@@ -172,6 +177,7 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
     supports = placo.FootstepsPlanner.make_supports(
         footsteps, 0.0, True, params.has_double_support(), True
     )
+    check_step_command(cfg, footsteps, step_period)
     wpg = placo.WalkPatternGenerator(probot, params)
     trajectory = wpg.plan(supports, probot.com_world(), 0.0)
     planning_time = time.perf_counter() - t0
@@ -238,6 +244,46 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
         planning_time_s=planning_time,
         ik_time_s=ik_time,
         max_stance_slip_m=stance_slip_m(ref, robot),
+    )
+
+
+def planned_step_s(cfg: WalkConfig, footsteps) -> np.ndarray:
+    """Mean step (dx [m], dy [m], dyaw [rad]) placo planned, each in the previous foot's frame.
+
+    The first step (to the initial stance) and the last (feet together) are left out; dy is
+    measured from the nominal feet spacing.
+    """
+    rel_steps = []
+    for k in range(2, len(footsteps) - 1):
+        rel = np.linalg.inv(footsteps[k - 1].frame) @ footsteps[k].frame
+        spacing = cfg.feet_spacing_m if "left" in str(footsteps[k].side) else -cfg.feet_spacing_m
+        rel_steps.append([rel[0, 3], rel[1, 3] - spacing, math.atan2(rel[1, 0], rel[0, 0])])
+    return np.mean(rel_steps, axis=0) if rel_steps else np.zeros(3)
+
+
+def check_step_command(cfg: WalkConfig, footsteps, step_period_s: float) -> None:
+    """Raise :class:`ValueError` when placo clamped the commanded velocity to its step limits.
+
+    placo's footstep planner clips each step to the ``max_step_*`` limits without a word; the walk
+    would then be slower than ``(vx, vy, wz)`` while the artifact records the command. A step
+    shorter than asked by more than 2 % (and 5 mm or 0.01 rad) is an error that says what the
+    limits allow.
+    """
+    asked = np.array([cfg.vx, cfg.vy, cfg.wz]) * step_period_s
+    got = planned_step_s(cfg, footsteps)
+    short = np.abs(asked) - np.abs(got) > np.maximum(0.02 * np.abs(asked), [0.005, 0.005, 0.01])
+    if not short.any():
+        return
+    rate = got / step_period_s
+    raise ValueError(
+        f"solve-walk: the command (--vx, --vy, --wz) = ({cfg.vx:g} m/s, {cfg.vy:g} m/s, "
+        f"{cfg.wz:g} rad/s) asks for steps of ({asked[0]:.3f} m, {asked[1]:.3f} m, "
+        f"{asked[2]:.3f} rad) every {step_period_s:.2f} s, but the footstep limits "
+        f"(--max-step-forward-m {cfg.max_step_forward_m:g}, --max-step-backward-m "
+        f"{cfg.max_step_backward_m:g}, --max-step-lateral-m {cfg.max_step_lateral_m:g}, "
+        f"--max-step-yaw-rad {cfg.max_step_yaw_rad:g}) clamp them to ({got[0]:.3f} m, "
+        f"{got[1]:.3f} m, {got[2]:.3f} rad): the robot would walk at ({rate[0]:.3f} m/s, "
+        f"{rate[1]:.3f} m/s, {rate[2]:.3f} rad/s). Lower the command to that, or raise the limits."
     )
 
 

@@ -7,8 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from optimal_control.artifact import ArtifactError, OracleArtifact, build_artifact
+from optimal_control.artifact import (
+    ARTIFACT_VERSION,
+    ArtifactError,
+    OracleArtifact,
+    build_artifact,
+    write_manifest,
+)
 from optimal_control.bounds import BoundRule, eta0_per_phase
+from optimal_control.files import OutputExistsError, check_output_folder
 from optimal_control.reference import Reference, ReferenceError, static_reference
 from optimal_control.wrench_qp import WrenchQP, WrenchQPConfig
 
@@ -88,11 +95,65 @@ def test_artifact_load_rejects_bad_folders(tmp_path, g1_pin):
     (folder / "oracle.json").write_text(json.dumps(summary))
     with pytest.raises(ArtifactError, match="version 999"):
         OracleArtifact.load(folder)
-    summary["version"] = 1
+    summary["version"] = ARTIFACT_VERSION
     summary["eta0"] = [[1.0] * 6]  # one row for three phases
     (folder / "oracle.json").write_text(json.dumps(summary))
+    with pytest.raises(ArtifactError, match=r"oracle\.json' differs from manifest\.json"):
+        OracleArtifact.load(folder)  # an edit the manifest does not know: refused
+    write_manifest(folder)  # seal the deliberate edit: the content check now speaks
     with pytest.raises(ArtifactError, match="eta0 has shape"):
         OracleArtifact.load(folder)
+
+
+def test_partial_or_mixed_artifacts_do_not_load(tmp_path, g1_pin):
+    """The manifest names the file that is missing, truncated or from another artifact."""
+    art = _small_artifact(g1_pin)
+    first = art.save(tmp_path / "a", plots=False)
+    manifest = json.loads((first / "manifest.json").read_text())
+    assert set(manifest["files"]) == {"arrays.npz", "oracle.json"}
+    assert set(manifest["code_revision"]) == {"commit", "dirty"}
+    assert manifest["files"]["arrays.npz"]["size_bytes"] == (first / "arrays.npz").stat().st_size
+    art.eta0 = art.eta0 * 2.0
+    second = art.save(tmp_path / "b", plots=False)
+    OracleArtifact.load(second)
+
+    (first / "manifest.json").rename(tmp_path / "manifest.json")
+    with pytest.raises(ArtifactError, match="manifest.json is missing"):
+        OracleArtifact.load(first)  # killed before the manifest (old non-atomic writer)
+    (tmp_path / "manifest.json").rename(first / "manifest.json")
+    (first / "oracle.json").write_bytes((second / "oracle.json").read_bytes())
+    with pytest.raises(ArtifactError, match=r"oracle\.json' differs"):
+        OracleArtifact.load(first)  # the walk's eta0 with the dance's arrays
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    for name in ("oracle.json", "manifest.json"):
+        (mixed / name).write_bytes((second / name).read_bytes())
+    data = (second / "arrays.npz").read_bytes()
+    (mixed / "arrays.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ArtifactError, match=r"arrays\.npz' differs"):
+        OracleArtifact.load(mixed)  # truncated arrays
+    write_manifest(mixed)
+    with pytest.raises(ArtifactError, match="not a readable .npz"):
+        OracleArtifact.load(mixed)  # truncated and sealed: the npz reader names the file
+
+
+def test_saving_over_an_artifact_needs_overwrite_and_leaves_no_stale_files(tmp_path, g1_pin):
+    art = _small_artifact(g1_pin)
+    folder = tmp_path / "art"
+    art.save(folder, plots=False)
+    (folder / "solution.npz").write_bytes(b"stale file of another task")
+    with pytest.raises(OutputExistsError, match="--overwrite"):
+        art.save(folder, plots=False)
+    with pytest.raises(OutputExistsError, match="--overwrite"):
+        check_output_folder(folder, overwrite=False)
+    art.save(folder, plots=False, overwrite=True)
+    assert sorted(p.name for p in folder.iterdir()) == [
+        "arrays.npz",
+        "manifest.json",
+        "oracle.json",
+    ]
+    assert [p.name for p in tmp_path.iterdir()] == ["art"]  # no temporary folder left
+    OracleArtifact.load(folder)
 
 
 def test_reference_validation_names_the_problem(g1_pin):

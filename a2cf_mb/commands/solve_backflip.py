@@ -21,35 +21,37 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_config_arguments(parser, BackflipConfig)
     add_config_arguments(parser, OutputConfig)
     add_config_arguments(parser, BackflipOracleConfig, prefix="oracle_")
+    # The same --overwrite as solve-walk / solve-dance (an alias; the default is the config's).
+    parser.add_argument(
+        "--overwrite",
+        dest="oracle_overwrite",
+        action=argparse.BooleanOptionalAction,
+        default=argparse.SUPPRESS,
+        help="same as --oracle-overwrite",
+    )
     add_config_arguments(parser, PlaybackConfig, prefix="playback_")
     add_config_arguments(parser, AuditConfig, prefix="audit_")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Solve and print the summary; a clear message and exit code 2 on failure."""
+    """Solve and print the summary (errors are reported by :func:`a2cf_mb.cli.main`)."""
     from optimal_control.backflip.audit import AuditConfig
     from optimal_control.backflip.config import BackflipConfig
     from optimal_control.backflip.pipeline import (
-        BackflipAuditError,
         BackflipOracleConfig,
         OutputConfig,
         format_backflip_summary,
         solve_backflip,
     )
     from optimal_control.backflip.playback import PlaybackConfig
-    from optimal_control.backflip.solve import InfeasibleBackflipError
 
-    try:
-        art, folder, report = solve_backflip(
-            config_from_args(BackflipConfig, args),
-            config_from_args(BackflipOracleConfig, args, prefix="oracle_"),
-            config_from_args(PlaybackConfig, args, prefix="playback_"),
-            config_from_args(OutputConfig, args),
-            config_from_args(AuditConfig, args, prefix="audit_"),
-        )
-    except (InfeasibleBackflipError, BackflipAuditError, ValueError, FileNotFoundError) as err:
-        print(f"error: {err}")
-        return 2
+    art, folder, report = solve_backflip(
+        config_from_args(BackflipConfig, args),
+        config_from_args(BackflipOracleConfig, args, prefix="oracle_"),
+        config_from_args(PlaybackConfig, args, prefix="playback_"),
+        config_from_args(OutputConfig, args),
+        config_from_args(AuditConfig, args, prefix="audit_"),
+    )
     print(format_backflip_summary(art, folder, report))
     return 0

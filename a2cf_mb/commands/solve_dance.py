@@ -30,20 +30,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Solve and print where the artifact went."""
+    """Solve and print where the artifact went (errors are reported by :func:`a2cf_mb.cli.main`)."""
     from optimal_control.dance import DanceConfig
-    from optimal_control.motion_clip import ClipConfig, ClipError
+    from optimal_control.motion_clip import ClipConfig
     from optimal_control.oracle import OracleConfig, format_summary, solve_dance
 
-    try:
-        art, folder = solve_dance(
-            config_from_args(DanceConfig, args),
-            config_from_args(OracleConfig, args),
-            clip=args.clip,
-            clip_cfg=config_from_args(ClipConfig, args, prefix="clip_"),
-        )
-    except ClipError as err:
-        print(f"error: {err}")
-        return 2
+    art, folder = solve_dance(
+        config_from_args(DanceConfig, args),
+        config_from_args(OracleConfig, args),
+        clip=args.clip,
+        clip_cfg=config_from_args(ClipConfig, args, prefix="clip_"),
+    )
     print(format_summary(art, folder))
     return 0

@@ -23,6 +23,7 @@ import pinocchio as pin
 from optimal_control.backflip.config import PHASE_NAMES, BackflipConfig
 from optimal_control.backflip.sagittal import SagittalModel
 from optimal_control.backflip.transcription import Grid, Solution, make_grid
+from optimal_control.validation import require_finite_fields
 from robots import g1
 
 
@@ -40,6 +41,10 @@ class AuditConfig:
     energy_tol_j: float = 5.0  # energy balance error always allowed [J]
     max_contact_work_j: float = 1.0  # contacts may not do more positive work than this [J]
     final_pitch_tol_rad: float = 1e-3  # final pitch within this of -2 pi [rad]
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
 
 @dataclass

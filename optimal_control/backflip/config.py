@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from optimal_control.validation import require_finite_fields
+
 PHASE_NAMES: tuple[str, ...] = ("stand", "crouch", "jump", "air", "land")
 """The paper's backflip FSM phases, in order (index = phase id 0..4)."""
 STANCE_PHASES = (0, 1, 2, 4)
@@ -66,6 +68,10 @@ class BackflipConfig:
     print_level: int = 0  # IPOPT print level (0 silent, 5 verbose) [-]
     warm_start: str = ""  # path of a cached solution (npz) to warm-start from; "" = cold
     cache_dir: str = "~/.cache/a2cf-mb/backflip"  # solution cache for warm starts; "" = none
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
     def phases(self) -> tuple[PhaseSpec, ...]:
         """The five phases as :class:`PhaseSpec`, in :data:`PHASE_NAMES` order."""

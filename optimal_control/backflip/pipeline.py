@@ -12,8 +12,8 @@ trajectories, phase timings, solver statistics, audit, playback and the eta0-vs-
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,12 +40,15 @@ from optimal_control.backflip.sagittal import MOVED_JOINTS, build_sagittal_model
 from optimal_control.backflip.solve import (
     SolveResult,
     cache_path,
+    load_solution,
     save_solution,
     solve_backflip_to,
 )
 from optimal_control.backflip.trajectory import SampledFlip, sample_solution
 from optimal_control.backflip.transcription import Solution
-from optimal_control.oracle import OracleConfig, default_output_dir, solve_reference_oracle
+from optimal_control.files import atomic_write_json, atomic_write_text
+from optimal_control.oracle import OracleConfig, resolve_output, solve_reference_oracle
+from optimal_control.validation import require_finite_fields
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,10 @@ class OutputConfig:
     rate_hz: float = 50.0  # artifact sample rate [Hz]
     use_cache: bool = True  # warm-start from the cached solution of the same problem if any
     playback: bool = True  # run the MuJoCo playback check
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
 
 class BackflipAuditError(RuntimeError):
@@ -200,35 +207,46 @@ def solve_backflip(
         BackflipAuditError: the solution failed the audit (saved, not shipped).
     """
     cfg.validate()
-    folder = Path(oracle_cfg.out) if oracle_cfg.out else default_output_dir("backflip")
-    oracle_cfg = dataclasses.replace(oracle_cfg, out=str(folder))
+    oracle_cfg = resolve_output("backflip", oracle_cfg)
+    folder = Path(oracle_cfg.out)
+    # Failure files never go into an existing artifact (it would no longer match its manifest).
+    failure_dir = folder if not folder.exists() else folder.with_name(folder.name + "-failed")
     model = build_sagittal_model()
     warm = None
     warm_source = cfg.warm_start
     cached = cache_path(cfg) if cfg.cache_dir else None
+    cache_note = ""
     if not cfg.warm_start and out_cfg.use_cache and cached is not None and cached.is_file():
-        warm = Solution.from_npz(np.load(cached))
-        warm_source = str(cached)
+        try:
+            warm = load_solution(cached, "backflip cache file")
+            warm_source = str(cached)
+        except ValueError as err:
+            cache_note = f"ignored the corrupt cache file (it will be replaced): {err}"
+            warnings.warn(cache_note, stacklevel=2)
+            cached.unlink(missing_ok=True)
     t0 = time.perf_counter()
     result: SolveResult = solve_backflip_to(
-        cfg, model, warm_start=warm, failure_path=folder / "last_iterate.npz"
+        cfg, model, warm_start=warm, failure_path=failure_dir / "last_iterate.npz"
     )
     solve_wall = time.perf_counter() - t0
     sol = result.solution
     grid = result.transcription.grid
     audit: AuditReport = audit_solution(sol, cfg, model, audit_cfg, grid)
-    folder.mkdir(parents=True, exist_ok=True)
     if not audit.passed:
-        save_solution(sol, folder / "failed_solution.npz")
-        (folder / "audit.json").write_text(json.dumps(audit.to_dict(), indent=2))
+        failure_dir.mkdir(parents=True, exist_ok=True)
+        save_solution(sol, failure_dir / "failed_solution.npz")
+        atomic_write_json(failure_dir / "audit.json", audit.to_dict())
         raise BackflipAuditError(
             "The solved backflip FAILED its audit and was not written as an artifact:\n  - "
             + "\n  - ".join(audit.failures())
-            + f"\nSolution and audit saved in {folder} (failed_solution.npz, audit.json)."
+            + f"\nSolution and audit saved in {failure_dir} (failed_solution.npz, audit.json)."
         )
     if cached is not None:
-        save_solution(sol, cached)
-    save_solution(sol, folder / "solution.npz")
+        try:
+            save_solution(sol, cached)
+        except OSError as err:  # the cache only saves time: report, do not fail the run
+            cache_note = f"could not write the cache file {cached}: {err}"
+            warnings.warn(cache_note, stacklevel=2)
 
     flip = sample_solution(sol, grid, model, out_cfg.rate_hz)
     ref = flip.to_reference()
@@ -255,6 +273,7 @@ def solve_backflip(
     solver = result.stats_dict()
     solver["wall_time_s"] = solve_wall
     solver["warm_start_from"] = warm_source or None
+    solver["cache_note"] = cache_note
     summary = {
         "to_config": dataclasses.asdict(cfg),
         "reduction": {
@@ -285,17 +304,26 @@ def solve_backflip(
         "knot_wrench_b": sol.wrench_b,
         "phase_durations_s": sol.durations_s,
     }
-    art, folder = solve_reference_oracle("backflip", ref, oracle_cfg, summary, arrays, NOVICE_MODEL)
-    cmp = compare_with_paper(art.eta0, PHASE_NAMES)
-    art.extra_summary["eta0_vs_paper"] = cmp
-    for alpha in sorted(art.profiles, reverse=True):
-        prof = art.profiles[alpha]
-        art.extra_summary.setdefault("novice_wrench_max_per_phase_w", {})[f"{alpha:.2f}"] = (
-            _wrench_per_phase(prof.wrench_w, ref.phase)
+
+    def finish(art: OracleArtifact) -> None:
+        cmp = compare_with_paper(art.eta0, PHASE_NAMES)
+        art.extra_summary["eta0_vs_paper"] = cmp
+        for alpha in sorted(art.profiles, reverse=True):
+            prof = art.profiles[alpha]
+            art.extra_summary.setdefault("novice_wrench_max_per_phase_w", {})[f"{alpha:.2f}"] = (
+                _wrench_per_phase(prof.wrench_w, ref.phase)
+            )
+
+    def write_extra(art: OracleArtifact, tmp: Path) -> None:
+        save_solution(sol, tmp / "solution.npz")
+        atomic_write_text(
+            tmp / "eta0_vs_paper.md", comparison_markdown(art.extra_summary["eta0_vs_paper"]) + "\n"
         )
-    art.save(folder)
-    (folder / "eta0_vs_paper.md").write_text(comparison_markdown(cmp) + "\n")
-    write_backflip_plots(flip, playbacks, folder / "plots")
+        write_backflip_plots(flip, playbacks, tmp / "plots")
+
+    art, folder = solve_reference_oracle(
+        "backflip", ref, oracle_cfg, summary, arrays, NOVICE_MODEL, finish, write_extra
+    )
     report = {"solver": solver, "audit": audit.to_dict(), "playback": playback_report}
     return art, folder, report
 

@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from optimal_control.backflip.config import AIR_PHASE
 from optimal_control.backflip.trajectory import SampledFlip
+from optimal_control.validation import require_finite_fields
 from optimal_control.wrench_qp import xfrc_applied_from_pelvis_wrench
 from robots import g1
 from robots.conventions import (
@@ -54,6 +55,10 @@ class PlaybackConfig:
     # lets the soles sink and rock under the ~1.5 kN push-off, the TO's contact is rigid; 2 steps
     # (0.01 s) is the stiffest MuJoCo allows at its 5 ms step [s]
     contact_timeconst_s: float = 0.01
+
+    def __post_init__(self) -> None:
+        """Reject NaN / inf values, naming the field and its flag."""
+        require_finite_fields(self)
 
     def validate(self, timestep_s: float) -> None:
         """Raise ValueError naming a bad field."""

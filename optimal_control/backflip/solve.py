@@ -19,6 +19,7 @@ from optimal_control.backflip.transcription import (
     build_transcription,
     initial_guess,
 )
+from optimal_control.files import atomic_save_npz, read_npz
 
 
 @dataclass
@@ -165,10 +166,7 @@ def solve_backflip_to(
     t0 = time.perf_counter()
     tr = build_transcription(model, cfg)
     if warm_start is None and cfg.warm_start:
-        path = Path(cfg.warm_start).expanduser()
-        if not path.is_file():
-            raise FileNotFoundError(f"--warm-start {path}: no such file (a solution .npz).")
-        warm_start = Solution.from_npz(np.load(path))
+        warm_start = load_solution(Path(cfg.warm_start).expanduser(), "--warm-start solution")
     weights = list(cfg.wrench_weights)
     if warm_start is not None:
         if warm_start.r.shape[0] != tr.grid.num_knots:
@@ -217,9 +215,7 @@ def solve_backflip_to(
     if raise_on_failure and result.max_violation > 1e-4:
         saved = None
         if failure_path is not None:
-            failure_path.parent.mkdir(parents=True, exist_ok=True)
-            np.savez(failure_path, **result.solution.to_npz_dict())
-            saved = failure_path
+            saved = save_solution(result.solution, failure_path)
         bad = {k: v for k, v in result.violations.items() if v > 1e-4}
         lines = "\n".join(
             f"  - {k}: max violation {v:.3g}" for k, v in sorted(bad.items(), key=lambda kv: -kv[1])
@@ -242,7 +238,26 @@ def cache_path(cfg: BackflipConfig) -> Path:
 
 
 def save_solution(sol: Solution, path: Path) -> Path:
-    """Write a solution as npz (for warm starts)."""
+    """Write a solution as npz (for warm starts), atomically."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(path, **sol.to_npz_dict())
-    return path
+    return atomic_save_npz(path, sol.to_npz_dict(), compressed=False)
+
+
+def load_solution(path: Path, what: str) -> Solution:
+    """Read a solution written by :func:`save_solution`; ``what`` names it in errors.
+
+    Raises :class:`ValueError` (junk, truncated, missing arrays, non-finite values) or
+    :class:`FileNotFoundError`, naming the file.
+    """
+    arrays = read_npz(path, what)
+    try:
+        sol = Solution.from_npz(arrays)
+    except (KeyError, ValueError, TypeError, IndexError) as err:
+        raise ValueError(
+            f"{what} '{path}' is not a backflip solution (arrays {sorted(arrays)}; {err!r}); "
+            "pass a solution.npz written by solve-backflip."
+        ) from err
+    for name, value in arrays.items():
+        if np.issubdtype(value.dtype, np.number) and not np.all(np.isfinite(value)):
+            raise ValueError(f"{what} '{path}': array '{name}' has NaN/inf; pass another file.")
+    return sol
