@@ -114,6 +114,11 @@ def read_npz(path: str | Path, what: str) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what} '{path}' does not exist (or is not a file).")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(
+            f"{what} '{path}' is not an .npz archive (no zip directory: junk, truncated or another "
+            "format). Regenerate it or pass another file."
+        )
     try:
         with np.load(path, allow_pickle=False) as npz:
             if not isinstance(npz, np.lib.npyio.NpzFile):

@@ -162,11 +162,11 @@ def solve_backflip_to(
     ``failure_path`` (if given) and :class:`InfeasibleBackflipError` names the violated groups.
     """
     cfg.validate()
+    if warm_start is None and cfg.warm_start:  # read before the (slow) NLP build
+        warm_start = load_solution(Path(cfg.warm_start).expanduser(), "--warm-start solution")
     model = model or build_sagittal_model()
     t0 = time.perf_counter()
     tr = build_transcription(model, cfg)
-    if warm_start is None and cfg.warm_start:
-        warm_start = load_solution(Path(cfg.warm_start).expanduser(), "--warm-start solution")
     weights = list(cfg.wrench_weights)
     if warm_start is not None:
         if warm_start.r.shape[0] != tr.grid.num_knots:
