@@ -76,7 +76,7 @@ def read_clip(path: str | Path, cfg: ClipConfig = ClipConfig()) -> tuple[np.ndar
     """Raw clip rows (T, 36) and their frame rate [1/s] from a CSV or NPZ file."""
     path = Path(path)
     if not path.is_file():
-        raise ClipError(f"Motion clip '{path}' does not exist.")
+        raise ClipError(f"Motion clip '{path}' does not exist or is not a file; check --clip.")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         try:

@@ -65,9 +65,15 @@ class OracleConfig:
 
 
 def default_output_dir(task: str) -> Path:
-    """``artifacts/<task>-<YYYYmmdd-HHMMSS>`` (UTC) in the working directory."""
+    """``artifacts/<task>-<YYYYmmdd-HHMMSS>`` (UTC) in the working directory; ``-2``, ``-3``, ...
+    is appended when a run of the same second took the name (never an existing folder)."""
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S")
-    return Path("artifacts") / f"{task}-{stamp}"
+    folder = Path("artifacts") / f"{task}-{stamp}"
+    k = 2
+    while folder.exists():
+        folder = Path("artifacts") / f"{task}-{stamp}-{k}"
+        k += 1
+    return folder
 
 
 def resolve_output(task: str, cfg: OracleConfig) -> OracleConfig:

@@ -373,3 +373,27 @@ def test_writability_check_names_the_folder(tmp_path):
         check_writable_dir(tmp_path / "f", "--out")
     with pytest.raises(ValueError, match=r"--out '.*f/sub' is not writable"):
         check_writable_dir(tmp_path / "f" / "sub", "--out")
+
+
+def test_default_output_folders_never_collide(tmp_path, monkeypatch):
+    """Two solves in the same second get two folders (the second would else need --overwrite)."""
+    from optimal_control.oracle import default_output_dir
+
+    monkeypatch.chdir(tmp_path)
+    first = default_output_dir("walk")
+    first.mkdir(parents=True)
+    second = default_output_dir("walk")
+    assert second != first and not second.exists()
+
+
+def test_every_solve_command_takes_overwrite():
+    from a2cf_mb.cli import build_parser
+
+    parser = build_parser()
+    for command, dest in (
+        ("solve-walk", "overwrite"),
+        ("solve-dance", "overwrite"),
+        ("solve-backflip", "oracle_overwrite"),
+    ):
+        assert getattr(parser.parse_args([command]), dest) is False
+        assert getattr(parser.parse_args([command, "--overwrite"]), dest) is True
