@@ -19,15 +19,28 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.bench",
     "a2cf_mb.commands.train",
     "a2cf_mb.commands.eval",
+    "a2cf_mb.commands.list_tasks",
     "a2cf_mb.commands.solve_walk",
     "a2cf_mb.commands.solve_dance",
     "a2cf_mb.commands.solve_backflip",
 )
 
 
+class UsageError(ValueError):
+    """A command line argparse refused (unknown flag, bad value, NaN in a float flag)."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a refused command line raises :class:`UsageError` (reported by :func:`main`
+    in one line, like every other user error) instead of printing the usage block and exiting."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="a2cf-mb",
         description="A2CF with a model-based wrench oracle for the Unitree G1.",
     )
@@ -88,9 +101,11 @@ def main(argv: list[str] | None = None) -> int:
     ``A2CF_DEBUG=1`` re-raises them with the traceback. Other exceptions are bugs and propagate
     with their traceback.
     """
-    args = build_parser().parse_args(argv)
     warnings.formatwarning = _format_warning
+    command = "a2cf-mb"
     try:
+        args = build_parser().parse_args(argv)
+        command = f"a2cf-mb {args.command}"
         result = args.func(args)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -99,8 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         if not is_user_error(exc) or os.environ.get(DEBUG_ENV) == "1":
             raise
         print(
-            f"a2cf-mb {args.command}: error: {user_message(exc)} "
-            f"(set {DEBUG_ENV}=1 for the full traceback)",
+            f"{command}: error: {user_message(exc)} (set {DEBUG_ENV}=1 for the full traceback)",
             file=sys.stderr,
         )
         return 2

@@ -13,6 +13,9 @@ import torch
 WRENCH_DIM = 6
 """Force (3) then torque (3)."""
 
+DEFAULT_RANDOM_MASK_PROB = 0.2
+"""zeta of the paper's random mask (RM): each wrench component dropped with probability 0.2."""
+
 
 def squash_wrench(raw: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
     """Map raw head outputs (N, 6) into the hypercube |F_i| <= bound_i (N, 6): bound * tanh(raw)."""

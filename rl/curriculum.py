@@ -32,24 +32,22 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import torch
+import torch.distributed as dist
 
-WRENCH_AXES: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
+from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0
+
+WRENCH_AXES: tuple[str, ...] = AXIS_NAMES
 """Names of the six wrench components: world-frame force [N] then moment [Nm] at the pelvis."""
 
-# Paper Table "Initial Distribution of Spatial Force": force bound [N] then moment bound [Nm],
-# one row per task phase. "stand" (stand and balance under pushes) uses the walking row.
-PAPER_INITIAL_BOUNDS: dict[str, tuple[tuple[float, ...], ...]] = {
-    "walk": ((40.0, 40.0, 10.0, 40.0, 40.0, 40.0),),
-    "stand": ((40.0, 40.0, 10.0, 40.0, 40.0, 40.0),),
-    "backflip": (
-        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
-        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
-        (40.0, 40.0, 100.0, 30.0, 30.0, 30.0),
-        (40.0, 40.0, 100.0, 30.0, 30.0, 30.0),
-        (40.0, 40.0, 10.0, 30.0, 30.0, 10.0),
-    ),
-    "dance": ((40.0, 40.0, 40.0, 40.0, 40.0, 40.0),),
-}
+
+def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:
+    """The paper's hand-set initial bounds of ``paper_task`` ("walk", "dance", "backflip"), one
+    6-D row per phase, from the one table :data:`optimal_control.bounds.PAPER_ETA0`."""
+    if paper_task not in PAPER_ETA0:
+        raise ValueError(
+            f"the paper has no initial-bound row for '{paper_task}'; known: {sorted(PAPER_ETA0)}"
+        )
+    return tuple(tuple(float(v) for v in row) for row in PAPER_ETA0[paper_task]["all"])
 
 
 @dataclass(frozen=True)
@@ -120,29 +118,6 @@ def identical_axis_bounds(eta0: torch.Tensor) -> torch.Tensor:
     force = eta0[:, :3].mean(dim=-1, keepdim=True).expand(-1, 3)
     moment = eta0[:, 3:].mean(dim=-1, keepdim=True).expand(-1, 3)
     return torch.cat([force, moment], dim=-1).clone()
-
-
-def paper_initial_bounds(task_name: str, num_phases: int) -> torch.Tensor:
-    """The paper's hand-set initial bounds for a task, shape (num_phases, 6).
-
-    A single-row table entry is repeated over the task's phases. The oracle artifact
-    (``--warmstart``) is the other source of ``eta0``; it will pass its own tensor instead.
-    """
-    if task_name not in PAPER_INITIAL_BOUNDS:
-        raise ValueError(
-            f"no initial assist bound is known for task '{task_name}': add a row to "
-            f"rl.curriculum.PAPER_INITIAL_BOUNDS (known: {sorted(PAPER_INITIAL_BOUNDS)}) or take "
-            "eta0 from an oracle artifact"
-        )
-    rows = torch.tensor(PAPER_INITIAL_BOUNDS[task_name], dtype=torch.float32)
-    if rows.shape[0] == 1:
-        return rows.expand(num_phases, 6).clone()
-    if rows.shape[0] != num_phases:
-        raise ValueError(
-            f"task '{task_name}' has {num_phases} phases but the paper table has {rows.shape[0]} "
-            "rows of initial bounds"
-        )
-    return rows
 
 
 @dataclass(frozen=True)
@@ -316,3 +291,109 @@ class AssistStatistics:
         self.count.zero_()
         self.force_sum_n = 0.0
         self.steps = 0
+
+    def state_dict(self) -> dict[str, Any]:
+        """The running sums (a checkpoint between two steps of a rollout continues exactly)."""
+        return {
+            "norm_sum": self.norm_sum.clone(),
+            "count": self.count.clone(),
+            "force_sum_n": self.force_sum_n,
+            "steps": self.steps,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        self.norm_sum.copy_(state["norm_sum"])
+        self.count.copy_(state["count"])
+        self.force_sum_n = float(state["force_sum_n"])
+        self.steps = int(state["steps"])
+
+
+def _all_reduce_sum(values: torch.Tensor) -> torch.Tensor:
+    """Sum ``values`` over the processes of a ``torchrun`` job (identity in a single process)."""
+    if dist.is_available() and dist.is_initialized():
+        values = values.clone()
+        dist.all_reduce(values, op=dist.ReduceOp.SUM)
+    return values
+
+
+class CurriculumEvent:
+    """Algorithm 1 as an iteration-rate event of the env: every ``steps_per_iteration`` env steps
+    (rsl-rl's ``num_steps_per_env``: one rollout) it updates the bounds from the env's own
+    applied-wrench statistics and skill measure.
+
+    The env calls :meth:`on_step` after every step and applies the returned update (bounds and
+    switches) before the next one: the timing of the former hand-written loop, with rsl-rl's
+    ``OnPolicyRunner.learn`` untouched. Under ``torchrun`` the statistics are summed over all
+    processes before the update, so every process moves its bounds identically.
+    """
+
+    def __init__(
+        self, curriculum: AssistCurriculum, steps_per_iteration: int, iteration: int = 0
+    ) -> None:
+        """Count rollouts from ``iteration`` (the first one not done yet)."""
+        if steps_per_iteration < 1:
+            raise ValueError(f"steps_per_iteration must be >= 1, got {steps_per_iteration}")
+        self.curriculum = curriculum
+        self.steps_per_iteration = int(steps_per_iteration)
+        self.iteration = int(iteration)
+        self.stats = AssistStatistics(curriculum.num_phases)
+        self.step_in_iteration = 0
+        self.skill_sum = 0.0
+        self.history: list[dict[str, Any]] = []
+        """One row per update (the curriculum log), checkpointed with the run."""
+
+    def on_step(self, assist: dict[str, torch.Tensor], skill_progress: float) -> dict | None:
+        """Record one env step; at the end of a rollout return the update row, else None."""
+        if self.curriculum.assist_enabled:
+            self.stats.add(assist)
+        self.skill_sum += float(skill_progress)
+        self.step_in_iteration += 1
+        if self.step_in_iteration < self.steps_per_iteration:
+            return None
+        sums = _all_reduce_sum(
+            torch.cat(
+                [
+                    self.stats.norm_sum,
+                    self.stats.count,
+                    torch.tensor(
+                        [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum, 1.0],
+                        dtype=torch.float64,
+                    ),
+                ]
+            )
+        )
+        p = self.curriculum.num_phases
+        norm_sum, count = sums[:p], sums[p : 2 * p]
+        force_sum, steps, skill_sum, processes = sums[2 * p :].tolist()
+        visited = count > 0
+        applied_norm = torch.where(visited, norm_sum / count.clamp(min=1.0), 0.0).float()
+        skill_progress = skill_sum / (processes * self.steps_per_iteration)
+        update = self.curriculum.update(self.iteration, applied_norm, visited, skill_progress)
+        row = {**update.as_dict(), "applied_force_n": force_sum / max(steps, 1.0)}
+        self.history.append(row)
+        self.iteration += 1
+        self.stats.reset()
+        self.step_in_iteration = 0
+        self.skill_sum = 0.0
+        return row
+
+    def state_dict(self) -> dict[str, Any]:
+        """Curriculum, counters, running sums and the update history."""
+        return {
+            "curriculum": self.curriculum.state_dict(),
+            "iteration": self.iteration,
+            "step_in_iteration": self.step_in_iteration,
+            "skill_sum": self.skill_sum,
+            "stats": self.stats.state_dict(),
+            "history": list(self.history),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        self.curriculum.load_state_dict(state["curriculum"])
+        self.iteration = int(state["iteration"])
+        self.step_in_iteration = int(state["step_in_iteration"])
+        self.skill_sum = float(state["skill_sum"])
+        self.stats.load_state_dict(state["stats"])
+        self.history = list(state["history"])

@@ -30,6 +30,11 @@ def make_obs(n: int = N, seed: int = 0) -> TensorDict:
     )
 
 
+SIZES = dict(
+    latent_dim=4, encoder_hidden_dims=(16,), motion_hidden_dims=(16,), assist_hidden_dims=(16,)
+)
+
+
 def make_actor(output_dim: int = 35, privileged: bool = True) -> A2CFActor:
     groups = ["policy", "history"] + (["privileged"] if privileged and output_dim == 35 else [])
     return A2CFActor(
@@ -37,10 +42,7 @@ def make_actor(output_dim: int = 35, privileged: bool = True) -> A2CFActor:
         {"actor": groups},
         "actor",
         output_dim,
-        latent_dim=4,
-        encoder_hidden_dims=(16,),
-        motion_hidden_dims=(16,),
-        assist_hidden_dims=(16,),
+        **SIZES,
         assist_privileged=privileged,
         distribution_cfg=GAUSSIAN,
     )
@@ -90,9 +92,9 @@ def test_both_heads_read_the_history_latent() -> None:
 
 def test_actor_rejects_wrong_groups_and_sizes() -> None:
     with pytest.raises(ValueError, match="obs_groups"):
-        A2CFActor(make_obs(), {"actor": ["policy"]}, "actor", 35)
+        A2CFActor(make_obs(), {"actor": ["policy"]}, "actor", 35, **SIZES)
     with pytest.raises(ValueError, match="output_dim"):
-        A2CFActor(make_obs(), {"actor": ["policy", "history"]}, "actor", 30)
+        A2CFActor(make_obs(), {"actor": ["policy", "history"]}, "actor", 30, **SIZES)
 
 
 def test_ppo_gradients_do_not_reach_the_encoder() -> None:
@@ -183,6 +185,7 @@ def test_assist_dimensions_get_their_own_initial_std() -> None:
         {"actor": ["policy", "history", "privileged"]},
         "actor",
         35,
+        **SIZES,
         distribution_cfg={"class_name": "GaussianDistribution", "init_std": 0.5},
         assist_init_std=1.5,
     )

@@ -6,20 +6,19 @@ import mujoco
 import numpy as np
 import pytest
 import torch
+from stand_envs import stand_env
 
 from rl.assist import AssistState, assist_wrench, sample_mask, squash_wrench
-from rl.envs import make_env
 from rl.envs.model import CONTROL_SPEC, STATE_SPEC
 from robots import g1
 
 ETA = torch.tensor([[80.0, 60.0, 200.0, 15.0, 10.0, 5.0]])
 
 
-def assist_env(num_envs: int, num_threads: int, **overrides):
-    env = make_env(
-        "stand", num_envs, num_threads=num_threads, pushes=False, randomize=False, **overrides
-    )
+def assist_env(num_envs: int, num_threads: int, random_mask_prob: float = 0.2, **overrides):
+    env = stand_env(num_envs, num_threads=num_threads, pushes=False, randomize=False, **overrides)
     env.set_assist_bound(ETA)
+    env.set_random_mask_prob(random_mask_prob)
     return env
 
 
@@ -118,7 +117,7 @@ def test_wrench_acts_in_world_frame_on_the_pelvis():
     eta = torch.tensor([[0.0, 0.0, 400.0, 0.0, 0.0, 30.0]])
     results = {}
     for name, raw_z in (("none", 0.0), ("assist", 5.0)):
-        env = make_env("stand", 3, num_threads=1, pushes=False, randomize=False, seed=1)
+        env = stand_env(3, num_threads=1, pushes=False, randomize=False, seed=1)
         env.set_assist_bound(eta)
         env.set_random_mask_prob(0.0)
         raw = torch.tensor([[0.0, 0.0, raw_z, 0.0, 0.0, raw_z]]).expand(3, 6)

@@ -5,15 +5,17 @@ from __future__ import annotations
 import pytest
 import torch
 
+from optimal_control.bounds import PAPER_ETA0
 from rl.curriculum import (
-    PAPER_INITIAL_BOUNDS,
     AssistCurriculum,
     AssistStatistics,
     CurriculumConfig,
+    CurriculumEvent,
     identical_axis_bounds,
-    paper_initial_bounds,
+    paper_bound_rows,
     update_bound,
 )
+from rl.tasks.stand import STAND
 
 ETA0 = torch.tensor([[40.0, 40.0, 10.0, 40.0, 40.0, 40.0], [40.0, 40.0, 100.0, 30.0, 30.0, 30.0]])
 NORM0 = torch.linalg.vector_norm(ETA0, dim=-1)
@@ -131,14 +133,14 @@ def test_bad_inputs_are_reported() -> None:
         CurriculumConfig(epsilon=1.5)
     with pytest.raises(ValueError, match="2 phases"):
         AssistCurriculum(ETA0).update(0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0)
-    with pytest.raises(ValueError, match="no initial assist bound"):
-        paper_initial_bounds("juggle", 1)
+    with pytest.raises(ValueError, match="no initial-bound row"):
+        paper_bound_rows("juggle")
 
 
 def test_paper_table_and_identical_bounds() -> None:
-    stand = paper_initial_bounds("stand", 1)
-    assert stand.tolist() == [list(PAPER_INITIAL_BOUNDS["walk"][0])]
-    flip = paper_initial_bounds("backflip", 5)
+    # One table (optimal_control.bounds); the stand task's default is its walking row.
+    assert STAND.default_assist_bound().tolist() == PAPER_ETA0["walk"]["all"]
+    flip = torch.tensor(paper_bound_rows("backflip"))
     assert flip[2, 2] == 100.0 and flip[0, 2] == 10.0
     same = identical_axis_bounds(flip)
     torch.testing.assert_close(same[2], torch.tensor([60.0, 60.0, 60.0, 30.0, 30.0, 30.0]))
@@ -158,3 +160,41 @@ def test_assist_statistics_mean_norm_per_phase() -> None:
     assert stats.mean_force_n() == pytest.approx((5.0 + 0.0 + 1.0) / 3 / 2)
     stats.reset()
     assert not stats.result()[1].any()
+
+
+def _step_extras(phase: list[int], force: float) -> dict:
+    wrench = torch.zeros(len(phase), 6)
+    wrench[:, 0] = force
+    return {"applied_wrench": wrench, "phase": torch.tensor(phase)}
+
+
+def test_curriculum_event_updates_once_per_rollout() -> None:
+    """In-env Algorithm 1: statistics of exactly ``steps_per_iteration`` steps, one update each."""
+    event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=3)
+    # Phase 0 gets a small wrench (shrink), phase 1 one far above its bound (grow).
+    rows = [event.on_step(_step_extras([0, 1], 0.0), 0.1) for _ in range(2)]
+    assert rows == [None, None]
+    big = float(NORM0[1]) * 3 * 2  # mean over the 3 phase-1 samples: 2 x the bound norm
+    row = event.on_step(_step_extras([0, 1], 0.0) | {"applied_wrench": torch.tensor(
+        [[0.0] * 6, [big, 0, 0, 0, 0, 0]])}, 0.4)  # fmt: skip
+    assert row is not None and row["iteration"] == 0 and event.iteration == 1
+    torch.testing.assert_close(torch.tensor(row["eta"][0]), ETA0[0] * 0.8)
+    torch.testing.assert_close(torch.tensor(row["eta"][1]), ETA0[1] * 1.2)
+    assert row["skill_progress"] == pytest.approx(0.2)
+    assert event.step_in_iteration == 0 and event.stats.steps == 0
+    # The next rollout starts from the new bounds; state round-trips.
+    state = event.state_dict()
+    other = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=3)
+    other.load_state_dict(state)
+    torch.testing.assert_close(other.curriculum.eta, event.curriculum.eta)
+    assert other.history == event.history and other.iteration == 1
+
+
+def test_curriculum_event_ignores_steps_while_assistance_is_off() -> None:
+    curriculum = AssistCurriculum(ETA0)
+    curriculum.assist_enabled = False
+    event = CurriculumEvent(curriculum, steps_per_iteration=2)
+    event.on_step(_step_extras([0, 0], 50.0), 1.0)
+    row = event.on_step(_step_extras([0, 0], 50.0), 1.0)
+    assert row["visited"] == [False, False] and row["applied_force_n"] == 0.0
+    torch.testing.assert_close(curriculum.eta, ETA0)  # switched off: bounds frozen

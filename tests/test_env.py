@@ -1,34 +1,43 @@
-"""The batched G1 env: rsl-rl VecEnv API, partial resets, time-outs, divergence guard, randomisation."""
+"""The batched G1 env: rsl-rl VecEnv API, named observation terms, partial resets, time-outs,
+divergence guard, randomisation, tasks plugging in by config, exact state round trip."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import mujoco
 import numpy as np
 import pytest
 import torch
 from rsl_rl.env import VecEnv
+from stand_envs import stand_env
 
-from rl.envs import EnvConfig, G1VecEnv, make_env
+from rl import observations, rewards
+from rl.envs.config import EnvConfig
 from rl.envs.model import STATE_SPEC
 from rl.envs.randomization import PARAM_NAMES
-from rl.tasks import TASKS, StandTask
+from rl.envs.vec_env import G1VecEnv
+from rl.registry import TASKS, describe_tasks, get_task, make_env, register_task
+from rl.tasks.config import InitialStateConfig, quiet
+from rl.tasks.stand import STAND
+from rl.tasks.terms import ObsTerm, RewardTerm, TerminationTerm
 from robots import g1
 
 N = 6
 
 
-def quiet_env(num_envs: int = N, **overrides) -> G1VecEnv:
-    """An env whose physics depends only on the actions: no pushes, randomisation or reset noise."""
-    settings = dict(
-        num_threads=2,
-        pushes=False,
-        randomize=False,
-        reset_joint_pos_noise_rad=0.0,
-        reset_base_vel_noise_mps=0.0,
-        reset_random_yaw=False,
-    )
-    settings.update(overrides)
-    return make_env("stand", num_envs, **settings)
+def quiet_env(num_envs: int = N, task=None, **env_fields) -> G1VecEnv:
+    """An env whose physics depends only on the actions: no pushes, randomisation or noise."""
+    return make_env(quiet(task or STAND), num_envs, num_threads=2, **env_fields)
+
+
+def variant(task=STAND, **changes):
+    """A task variant: ``pushes=dict(...)`` etc. replace fields of the nested configs."""
+    values = {}
+    for name, value in changes.items():
+        current = getattr(task, name)
+        values[name] = dataclasses.replace(current, **value) if isinstance(value, dict) else value
+    return dataclasses.replace(task, **values)
 
 
 def zero_actions(env: G1VecEnv) -> torch.Tensor:
@@ -41,10 +50,10 @@ def test_vecenv_api_shapes_and_dtypes():
     assert env.num_actions == g1.NUM_JOINTS + 6 == 35
     assert env.num_phases == 1 and env.device == "cpu"
     assert env.episode_length_buf.dtype == torch.long and env.episode_length_buf.shape == (N,)
-    assert env.max_episode_length == round(env.cfg.episode_length_s / 0.02)
+    assert env.max_episode_length == round(env.task.episode_length_s / 0.02)
     obs = env.get_observations()
     p = obs["policy"].shape[1]
-    assert p == 3 + 3 + 3 * g1.NUM_JOINTS + env.task.command_dim
+    assert p == 3 + 3 + 3 * g1.NUM_JOINTS + env.task.commands.dim
     expected = {
         "policy": p,
         "history": env.cfg.history_length * p,
@@ -63,14 +72,15 @@ def test_vecenv_api_shapes_and_dtypes():
     assert dones.shape == (N,) and dones.dtype == torch.bool
     assert extras["time_outs"].shape == (N,) and extras["time_outs"].dtype == torch.bool
     assert all(isinstance(v, float) for v in extras["log"].values())
-    assert {f"Reward/{k}" for k in env.task.reward_terms()} <= set(extras["log"])
+    assert {f"Reward/{t.name}" for t in env.task.rewards} <= set(extras["log"])
+    assert {f"Termination/{t.name}" for t in env.task.terminations} <= set(extras["log"])
     assert "Episode/diverged_envs" in extras["log"]
     assist = extras["assist"]
     assert assist["applied_wrench"].shape == (N, 6) and assist["bound"].shape == (N, 6)
     assert assist["phase"].shape == (N,) and assist["phase"].dtype == torch.long
     assert extras["skill_progress"] >= 0.0
     # The policy observation holds the last motion action; the history ends with this observation.
-    last_action = obs["policy_clean"][:, 6 + 2 * g1.NUM_JOINTS : 6 + 3 * g1.NUM_JOINTS]
+    last_action = env.observation_term("policy_clean", "last_action")
     applied = actions[:, : g1.NUM_JOINTS].clamp(-env.cfg.clip_actions, env.cfg.clip_actions)
     not_reset = ~dones
     assert torch.allclose(last_action[not_reset], applied[not_reset])
@@ -78,13 +88,41 @@ def test_vecenv_api_shapes_and_dtypes():
     env.close()
 
 
-def test_observation_noise_only_on_policy_group():
-    env = make_env("stand", N, num_threads=1, randomize=False)
+def test_observation_terms_by_name():
+    env = stand_env(N, num_threads=1, randomize=False)
+    s = env.env_state
+    torch.testing.assert_close(
+        env.observation_term("policy_clean", "joint_pos"), s.joint_pos_rad - s.default_joint_pos_rad
+    )
+    torch.testing.assert_close(env.observation_term("privileged", "assist_bound"), s.assist_bound)
+    torch.testing.assert_close(
+        env.observation_term("critic", "feet_pos"), observations.feet_pos_b(s)
+    )
+    torch.testing.assert_close(
+        env.observation_term("critic", "joint_torque"), s.joint_torque_nm / s.effort_limit_nm
+    )
+    names = [name for name, _, _ in env.observation_layout()["policy"]]
+    assert names == ["base_ang_vel", "projected_gravity", "joint_pos", "joint_vel", "last_action",
+                     "command"]  # fmt: skip
+    with pytest.raises(KeyError, match="no term 'nope'"):
+        env.observation_term("policy", "nope")
+
+
+def test_observation_noise_per_term_only_on_policy_group():
+    env = stand_env(N, num_threads=1, randomize=False)
     obs = env.get_observations()
     assert not torch.equal(obs["policy"], obs["policy_clean"])
-    assert (obs["policy"] - obs["policy_clean"]).abs().max() <= env.cfg.noise_joint_vel_rps
-    quiet = quiet_env(noise=False)
-    obs = quiet.get_observations()
+    for term in STAND.observations.policy.terms:
+        width = env.observation_term("policy", term.name).shape[1]
+        if not width:
+            continue
+        noise = env.observation_term("policy", term.name) - env.observation_term(
+            "policy_clean", term.name
+        )
+        assert noise.abs().max() <= term.noise + 1e-6, term.name
+        assert (noise.abs().max() > 0.3 * term.noise) == (term.noise > 0), term.name
+    silent = make_env(STAND, N, num_threads=1, noise=False)
+    obs = silent.get_observations()
     assert torch.equal(obs["policy"], obs["policy_clean"])
 
 
@@ -109,7 +147,7 @@ def test_partial_reset_only_resets_done_envs():
 
 
 def test_time_outs_at_max_episode_length():
-    env = quiet_env(episode_length_s=0.1)  # 5 policy steps
+    env = quiet_env(task=variant(episode_length_s=0.1))  # 5 policy steps
     assert env.max_episode_length == 5
     for step in range(1, 6):
         _, _, dones, extras = env.step(zero_actions(env))
@@ -118,13 +156,13 @@ def test_time_outs_at_max_episode_length():
     assert extras["time_outs"].all() and dones.all()
     assert (env.episode_length_buf == 0).all()
     # A survived episode counts toward the stand task's skill progress.
-    assert extras["skill_progress"] == pytest.approx(1.0 / env.task.cfg.target_survival)
+    assert extras["skill_progress"] == pytest.approx(1.0 / env.task.skill.target_survival)
 
 
 def test_time_outs_of_shortened_episodes_do_not_count_as_survival():
     """Runners start episode_length_buf at random values: those first episodes time out early
     and must not look like a learned skill."""
-    env = quiet_env(episode_length_s=0.2)
+    env = quiet_env(task=variant(episode_length_s=0.2))
     env.episode_length_buf = torch.full_like(env.episode_length_buf, env.max_episode_length - 1)
     _, _, dones, extras = env.step(zero_actions(env))
     assert extras["time_outs"].all() and dones.all()
@@ -157,9 +195,8 @@ def test_randomisation_params_in_privileged_obs_and_physics():
     params = env.randomization_params
     assert params.shape == (8, len(PARAM_NAMES))
     assert params[:, 1].std() > 0  # payloads differ between envs
-    privileged = env.get_observations()["privileged"]
-    torch.testing.assert_close(privileged[:, 9 : 9 + len(PARAM_NAMES)], params)
-    body = env.model.body(env.cfg.payload_body).id
+    torch.testing.assert_close(env.observation_term("privileged", "randomization"), params)
+    body = env.model.body(env.task.randomization.payload_body).id
     sole = env.model.geom("left_sole_0").id
     for i in range(8):
         model = env.models[i]
@@ -184,7 +221,10 @@ def test_randomisation_params_in_privileged_obs_and_physics():
 
 
 def test_pushes_kick_the_base():
-    env = quiet_env(pushes=True, push_interval_range_s=(0.02, 0.02), push_velocity_xy_mps=1.0)
+    pushed = variant(
+        quiet(STAND), pushes=dict(enabled=True, interval_range_s=(0.02, 0.02), velocity_xy_mps=1.0)
+    )
+    env = make_env(pushed, N, num_threads=2)
     still = quiet_env()
     env.step(zero_actions(env))
     still.step(zero_actions(still))
@@ -193,33 +233,141 @@ def test_pushes_kick_the_base():
     assert (speed > still_speed + 0.05).all()
 
 
-class CrouchStartStand(StandTask):
-    """A task variant through the hooks only: start 5 cm lower with the knees bent more."""
-
-    def reset_state(self, env_ids, qpos, qvel):
-        qpos[:, 2] -= 0.05
-        qpos[:, 7 + g1.JOINT_NAMES.index("left_knee_joint")] += 0.3
+def crouch_start(env_ids, qpos, qvel, generator):
+    """Start 5 cm lower with the left knee bent more (an initial-state hook)."""
+    qpos[:, 2] -= 0.05
+    qpos[:, 7 + g1.JOINT_NAMES.index("left_knee_joint")] += 0.3
 
 
-def test_tasks_plug_in_through_hooks():
-    env = G1VecEnv(EnvConfig(num_envs=3, num_threads=1, randomize=False), CrouchStartStand())
-    stand_z = env.layout.stand_state[env.layout.qpos.start + 2]
-    np.testing.assert_allclose(env.env_state.base_pos_w[:, 2].numpy(), stand_z - 0.05, atol=1e-6)
-    knee = g1.JOINT_NAMES.index("left_knee_joint")
-    assert (env.env_state.joint_pos_rad[:, knee] > g1.STAND_JOINT_POS_RAD[knee] + 0.2).all()
+def knee_bend(s, joint: str = "left_knee_joint"):
+    """A test-only reward term: the left knee angle [rad]."""
+    return s.joint_pos_rad[:, g1.JOINT_NAMES.index(joint)]
+
+
+def test_a_task_plugs_in_by_config_without_touching_env_or_runner(tmp_path):
+    """A new task is a config plus a registry entry: here a test-only one, trained end to end."""
+    from rl.runner import train
+    from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+
+    crouch = dataclasses.replace(
+        STAND,
+        name="crouch_test",
+        description="test-only: stand from a crouch",
+        initial_state=InitialStateConfig(reset_state=crouch_start, random_yaw=False),
+        rewards=STAND.rewards + (RewardTerm("knee_bend", knee_bend, weight=0.5),),
+        terminations=(
+            TerminationTerm("too_low", STAND.terminations[0].func, params={"min_height_m": 0.3}),
+        ),  # fmt: skip
+        observations=dataclasses.replace(
+            STAND.observations,
+            privileged=dataclasses.replace(
+                STAND.observations.privileged,
+                terms=STAND.observations.privileged.terms
+                + (ObsTerm("knee", lambda s: knee_bend(s).unsqueeze(-1)),),
+            ),
+        ),
+    )
+    register_task(crouch)
+    try:
+        env = make_env("crouch_test", 3, num_threads=1)
+        stand_z = env.layout.stand_state[env.layout.qpos.start + 2]
+        np.testing.assert_allclose(
+            env.env_state.base_pos_w[:, 2].numpy(), stand_z - 0.05, atol=1e-6
+        )
+        knee = g1.JOINT_NAMES.index("left_knee_joint")
+        assert (env.env_state.joint_pos_rad[:, knee] > g1.STAND_JOINT_POS_RAD[knee] + 0.2).all()
+        torch.testing.assert_close(
+            env.observation_term("privileged", "knee")[:, 0], env.env_state.joint_pos_rad[:, knee]
+        )
+        _, _, _, extras = env.step(zero_actions(env))
+        assert "Reward/knee_bend" in extras["log"] and "Termination/tilted" not in extras["log"]
+        assert any(r["name"] == "crouch_test" for r in describe_tasks())
+        tiny = TrainConfig(
+            task="crouch_test", iterations=1, num_steps_per_env=4, out=str(tmp_path),
+            env=EnvConfig(num_envs=2, num_threads=1), export_onnx=False,
+            ppo=PPOConfig(num_learning_epochs=1, num_mini_batches=1),
+            model=ModelConfig(motion_hidden_dims=(8,), assist_hidden_dims=(8,),
+                              critic_hidden_dims=(8,), encoder_hidden_dims=(8,), latent_dim=2),
+        )  # fmt: skip
+        result = train(tiny, verbose=False)
+        assert result.iterations_done == 1
+    finally:
+        TASKS.pop("crouch_test")
+
+
+def test_task_overrides_and_bad_task_configs():
+    task = STAND.with_overrides(
+        {"pushes.velocity_xy_mps": 0.3, "reward_weights": {"upright": 2.0},
+         "term_params": {"tilted": {"max_tilt_rad": 0.6}}}
+    )  # fmt: skip
+    assert task.pushes.velocity_xy_mps == 0.3
+    assert {t.name: t.weight for t in task.rewards}["upright"] == 2.0
+    assert {t.name: t for t in task.terminations}["tilted"].params == {"max_tilt_rad": 0.6}
+    assert STAND.pushes.velocity_xy_mps == 0.5  # variants never edit the base
+    with pytest.raises(ValueError, match="no reward term"):
+        STAND.with_reward_weights({"uprite": 1.0})
+    with pytest.raises(ValueError, match="no parameter"):
+        STAND.with_term_params({"tilted": {"max_tilt": 1.0}})
+    with pytest.raises(ValueError, match="no field 'pushs'"):
+        STAND.with_overrides({"pushs.enabled": False})
+    with pytest.raises(ValueError, match="appears twice"):
+        dataclasses.replace(STAND, rewards=STAND.rewards + (RewardTerm("alive", rewards.alive),))
+    with pytest.raises(ValueError, match="one 6-D row per phase"):
+        dataclasses.replace(STAND, assist_bound=((1.0,) * 6,) * 2)
+
+
+def test_shared_randomisation_groups_bound_the_model_copies():
+    """model_groups = G: G model copies for N envs (memory), env i on copy i % G."""
+    env = make_env(variant(randomization=dict(model_groups=2)), 6, num_threads=1, seed=2)
+    assert len({id(m) for m in env.models}) == 2
+    assert env.models[0] is env.models[2] and env.models[1] is env.models[3]
+    params = env.randomization_params
+    torch.testing.assert_close(params[0], params[2])
+    assert not torch.equal(params[0], params[1])
+    sole = env.model.geom("left_sole_0").id
+    assert env.models[1].geom_friction[sole, 0] == pytest.approx(float(params[1, 0]))
+    env.state[0, env.layout.qpos.start + 2] = 0.1  # a reset keeps the group's parameters
+    env.step(zero_actions(env))
+    torch.testing.assert_close(env.randomization_params, params)
+
+
+def test_state_dict_continues_bit_for_bit():
+    """Saved mid-run and loaded into a fresh env, the next steps equal the uninterrupted run."""
+    env = make_env("stand", 4, num_threads=1, seed=5)
+    generator = torch.Generator().manual_seed(0)
+    actions = [0.8 * torch.randn(4, 35, generator=generator) for _ in range(40)]
+    for a in actions[:20]:
+        env.step(a)
+    saved = env.state_dict()
+    fresh = make_env("stand", 4, num_threads=1, seed=99)
+    fresh.load_state_dict(saved)
+    for a in actions[20:]:
+        obs_a, rew_a, done_a, _ = env.step(a)
+        obs_b, rew_b, done_b, _ = fresh.step(a)
+        assert torch.equal(rew_a, rew_b) and torch.equal(done_a, done_b)
+        for key in obs_a.keys():  # noqa: SIM118 - TensorDict keys
+            assert torch.equal(obs_a[key], obs_b[key]), key
+    np.testing.assert_array_equal(env.state, fresh.state)
+    assert env.diverged_total == fresh.diverged_total
+    with pytest.raises(ValueError, match="resume with the run's own config"):
+        make_env("stand", 3, num_threads=1).load_state_dict(saved)
 
 
 def test_bad_inputs_give_clear_errors():
-    with pytest.raises(ValueError, match="Unknown task"):
+    with pytest.raises(ValueError, match="unknown task"):
         make_env("moonwalk", 2)
     with pytest.raises(ValueError, match="not EnvConfig fields"):
         make_env("stand", 2, num_env=3)
     with pytest.raises(ValueError, match="num_envs"):
         EnvConfig(num_envs=0)
     with pytest.raises(ValueError, match="payload_body"):
-        G1VecEnv(EnvConfig(num_envs=1, payload_body="backpack"), StandTask())
+        make_env(variant(randomization=dict(payload_body="backpack")), 1)
     with pytest.raises(ValueError, match="payload_mass_range_kg"):
-        make_env("stand", 1, payload_mass_range_kg=(-20.0, 0.0))
+        make_env(variant(randomization=dict(payload_mass_range_kg=(-20.0, 0.0))), 1)
+    with pytest.raises(ValueError, match="interval_range_s"):
+        variant(pushes=dict(interval_range_s=(0.0, 1.0)))
+    with pytest.raises(ValueError, match="already registered"):
+        register_task(STAND)
     env = make_env("stand", 2, num_threads=1)
     with pytest.raises(ValueError, match=r"actions of shape \(2, 35\)"):
         env.step(torch.zeros(2, 29))
@@ -227,7 +375,7 @@ def test_bad_inputs_give_clear_errors():
         env.set_assist_bound(torch.ones(2, 6))
     with pytest.raises(ValueError, match="zeta"):
         env.set_random_mask_prob(1.5)
-    assert "stand" in TASKS
+    assert get_task("stand") is STAND
 
 
 def test_bench_env_smoke():
@@ -235,7 +383,8 @@ def test_bench_env_smoke():
 
     cfg = EnvBenchConfig(num_envs=(4,), num_steps=5, warmup_steps=1, repeats=1, num_threads=1)
     results = run_env_benchmark(cfg)
-    figures = results["sizes"]["4"]
+    assert set(results["sizes"]) == {"4 links on", "4 links off"}
+    figures = results["sizes"]["4 links on"]
     assert figures["env_steps_per_s"] > 0 and figures["physics_env_steps_per_s"] > 0
     assert figures["env_over_physics"] > 0
     assert "env/physics" in format_results(results)

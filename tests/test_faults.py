@@ -200,9 +200,9 @@ def no_debug(monkeypatch):
         (["solve-walk", "--vx", "nan"], "--vx"),
         (["solve-walk", "--duration", "inf"], "--duration"),
         (["solve-walk", "--margin", "nan"], "--margin"),
-        (["solve-dance", "--clip-source-fps", "inf"], "--source-fps"),
+        (["solve-dance", "--clip-source-fps", "inf"], "--clip-source-fps"),
         (["solve-backflip", "--turn-rad", "nan"], "--turn-rad"),
-        (["solve-backflip", "--playback-settle-s", "inf"], "--settle-s"),
+        (["solve-backflip", "--playback-settle-s", "inf"], "--playback-settle-s"),
     ],
 )
 def test_non_finite_flags_are_named(capsys, no_debug, tmp_path, args, needle):

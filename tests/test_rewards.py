@@ -6,9 +6,10 @@ import math
 
 import pytest
 import torch
+from stand_envs import stand_env
 
 from rl import rewards
-from rl.envs import make_env
+from rl.envs.state import EnvState
 from robots import g1
 
 N = 7
@@ -18,45 +19,60 @@ def batch(*shape: int) -> torch.Tensor:
     return torch.randn(N, *shape, generator=torch.Generator().manual_seed(sum(shape)))
 
 
+def random_state() -> EnvState:
+    """A batch state of random values (terms must not care where it came from)."""
+    return EnvState(
+        base_pos_w=batch(3), base_quat_w=torch.nn.functional.normalize(batch(4), dim=-1),
+        base_lin_vel_w=batch(3), base_lin_vel_b=batch(3), base_ang_vel_b=batch(3),
+        projected_gravity_b=batch(3), joint_pos_rad=batch(29), joint_vel_rps=batch(29) * 2,
+        joint_torque_nm=batch(29) * 10, foot_contact_force_n=batch(2) * 100,
+        foot_pos_w=batch(2, 3), action=batch(29), last_action=batch(29) * 2,
+        applied_wrench=batch(6), assist_bound=batch(6).abs(), episode_time_s=batch(1)[:, 0].abs(),
+        command=batch(0), phase=torch.zeros(N, dtype=torch.long), num_phases=1,
+        randomization_params=batch(5), default_joint_pos_rad=torch.zeros(29),
+        effort_limit_nm=torch.ones(29), weight_n=327.0, terminated=batch(1)[:, 0] > 0,
+    )  # fmt: skip
+
+
 CASES = {
-    "alive": (rewards.alive, (batch(3),)),
-    "upright": (rewards.upright, (batch(3),)),
-    "base_height": (rewards.base_height, (batch(1)[:, 0], 0.74)),
-    "joint_deviation_l2": (rewards.joint_deviation_l2, (batch(29), torch.zeros(29))),
-    "action_rate_l2": (rewards.action_rate_l2, (batch(29), batch(29) * 2)),
-    "torques_l2": (rewards.torques_l2, (batch(29),)),
-    "joint_vel_l2": (rewards.joint_vel_l2, (batch(29),)),
-    "base_lin_vel_xy_l2": (rewards.base_lin_vel_xy_l2, (batch(3),)),
-    "base_ang_vel_xy_l2": (rewards.base_ang_vel_xy_l2, (batch(3),)),
-    "feet_contact": (rewards.feet_contact, (batch(2) * 100,)),
-    "termination": (rewards.termination, (batch(1)[:, 0] > 0,)),
-    "less_assist": (rewards.less_assist, (batch(6), batch(6).abs())),
+    "alive": (rewards.alive, {}),
+    "upright": (rewards.upright, {"std": 0.25}),
+    "base_height": (rewards.base_height, {"target_m": 0.74}),
+    "joint_deviation_l2": (rewards.joint_deviation_l2, {}),
+    "action_rate_l2": (rewards.action_rate_l2, {}),
+    "torques_l2": (rewards.torques_l2, {}),
+    "joint_vel_l2": (rewards.joint_vel_l2, {}),
+    "base_lin_vel_xy_l2": (rewards.base_lin_vel_xy_l2, {}),
+    "base_ang_vel_xy_l2": (rewards.base_ang_vel_xy_l2, {}),
+    "feet_contact": (rewards.feet_contact, {"threshold_n": 1.0}),
+    "termination": (rewards.termination, {}),
 }
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_terms_are_pure_and_batched(name):
-    fn, args = CASES[name]
-    copies = [a.clone() if isinstance(a, torch.Tensor) else a for a in args]
-    out = fn(*args)
+    fn, params = CASES[name]
+    state = random_state()
+    before = {k: v.clone() for k, v in vars(state).items() if isinstance(v, torch.Tensor)}
+    out = fn(state, **params)
     assert out.shape == (N,) and torch.isfinite(out).all()
-    again = fn(*args)
-    torch.testing.assert_close(out, again)  # deterministic
-    for a, c in zip(args, copies, strict=True):
-        if isinstance(a, torch.Tensor):
-            assert torch.equal(a, c)  # inputs untouched
+    torch.testing.assert_close(out, fn(state, **params))  # deterministic
+    for key, value in before.items():
+        assert torch.equal(getattr(state, key), value), key  # inputs untouched
 
 
 def test_term_values():
-    upright_g = torch.tensor([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-    result = rewards.upright(upright_g)
+    state = random_state()
+    state.projected_gravity_b = torch.tensor([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    result = rewards.upright(state)
     assert result[0] == 1.0 and result[1] < 1e-6
-    assert rewards.base_height(torch.tensor([0.74, 0.84]), 0.74, 0.1).tolist() == pytest.approx(
-        [1.0, math.exp(-1.0)]
-    )
-    assert rewards.feet_contact(torch.tensor([[0.0, 50.0], [30.0, 40.0]])).tolist() == [0.5, 1.0]
+    state.base_pos_w = torch.tensor([[0.0, 0.0, 0.74], [0.0, 0.0, 0.84]])
+    assert rewards.base_height(state, 0.74, 0.1).tolist() == pytest.approx([1.0, math.exp(-1.0)])
+    state.foot_contact_force_n = torch.tensor([[0.0, 50.0], [30.0, 40.0]])
+    assert rewards.feet_contact(state).tolist() == [0.5, 1.0]
     stand = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
-    assert rewards.joint_deviation_l2(stand.expand(2, -1), stand).abs().max() == 0.0
+    state.joint_pos_rad, state.default_joint_pos_rad = stand.expand(2, -1), stand
+    assert rewards.joint_deviation_l2(state).abs().max() == 0.0
 
 
 def test_less_assist_reward():
@@ -70,7 +86,7 @@ def test_less_assist_reward():
 
 
 def test_env_adds_less_assist_reward_when_switched_on():
-    env = make_env("stand", 4, num_threads=1, pushes=False, randomize=False)
+    env = stand_env(4, num_threads=1, pushes=False, randomize=False)
     actions = torch.zeros(4, env.num_actions)
     actions[:, 29:] = 1.0
     _, _, _, extras = env.step(actions)

@@ -9,18 +9,13 @@ import pytest
 import torch
 
 from a2cf_mb.cli import main as cli_main
-from rl.curriculum import PAPER_INITIAL_BOUNDS
-from rl.runner import (
-    CHECKPOINT_DIR,
-    CURRICULUM_LOG,
-    LAST_CHECKPOINT,
-    EvalConfig,
-    ModelConfig,
-    PPOConfig,
-    TrainConfig,
-    evaluate,
-    train,
-)
+from optimal_control.bounds import PAPER_ETA0
+from rl.envs.config import EnvConfig
+from rl.evaluate import EvalConfig, evaluate
+from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, train
+from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+
+WALK_ROW = PAPER_ETA0["walk"]["all"]
 
 TINY_MODEL = ModelConfig(
     motion_hidden_dims=(32, 32),
@@ -37,7 +32,7 @@ def tiny_config(tmp_path, mode: str, **changes) -> TrainConfig:
     base = TrainConfig(
         task="stand",
         mode=mode,
-        num_envs=4,
+        env=EnvConfig(num_envs=4, num_threads=2),
         iterations=2,
         num_steps_per_env=8,
         out=str(tmp_path),
@@ -82,7 +77,7 @@ def test_two_iterations_of_every_mode(tmp_path, mode: str) -> None:
     if mode == "no-id":
         assert eta0[0][0] == eta0[0][1] == eta0[0][2] and eta0[0][3] == eta0[0][4] == eta0[0][5]
     else:
-        assert eta0 == [list(PAPER_INITIAL_BOUNDS["stand"][0])]
+        assert eta0 == WALK_ROW
     if mode == "a2cf":
         from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -126,12 +121,12 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     final = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     assert final["completed_iterations"] == 4
     assert final["curriculum"]["num_updates"] == 4
-    assert final["logger"]["tot_timesteps"] == 4 * cfg.num_envs * cfg.num_steps_per_env
+    assert final["logger"]["tot_timesteps"] == 4 * cfg.env.num_envs * cfg.num_steps_per_env
 
 
 def test_cli_train_then_eval(tmp_path) -> None:
     argv = [
-        "train", "--task", "stand", "--mode", "a2cf", "--num-envs", "4", "--iterations", "1",
+        "train", "--task", "stand", "--mode", "a2cf", "--env-num-envs", "4", "--iterations", "1",
         "--num-steps-per-env", "8", "--out", str(tmp_path), "--run-name", "cli",
         "--ppo-num-mini-batches", "2", "--ppo-num-learning-epochs", "1",
         "--model-motion-hidden-dims", "32", "32", "--model-critic-hidden-dims", "32",
@@ -155,7 +150,7 @@ def test_cli_train_then_eval(tmp_path) -> None:
 def test_stand_return_rises_in_a_short_cpu_run(tmp_path) -> None:
     """64 envs x 24 steps x 80 iterations of a2cf on "stand" (about 2-3 min on 2 cores)."""
     cfg = TrainConfig(
-        task="stand", mode="a2cf", num_envs=64, iterations=80, num_steps_per_env=24,
+        task="stand", mode="a2cf", env=EnvConfig(num_envs=64), iterations=80, num_steps_per_env=24,
         out=str(tmp_path), run_name="slow", save_interval=80,
     )  # fmt: skip
     rows = train(cfg, verbose=False).metrics["iterations"]
@@ -177,10 +172,87 @@ def test_curriculum_shrinks_an_unused_bound_in_real_training(tmp_path) -> None:
     ppo = dataclasses.replace(TINY_PPO, assist_init_noise_std=0.02)
     result = train(tiny_config(tmp_path, "a2cf", ppo=ppo), verbose=False)
     log = read_jsonl(result.run_dir / CURRICULUM_LOG)
-    eta0 = torch.tensor(PAPER_INITIAL_BOUNDS["stand"])
+    eta0 = torch.tensor(WALK_ROW)
     for k, line in enumerate(log, start=1):
         assert line["applied_norm"][0] < 0.5 * float(
             torch.linalg.vector_norm(eta0 * 0.8 ** (k - 1))
         )
         torch.testing.assert_close(torch.tensor(line["eta"]), eta0 * 0.8**k)
     assert log[-1]["assist_enabled"]
+
+
+PLAIN_KEYS = ("mean_step_reward", "mean_episode_return", "mean_episode_length", "skill_progress",
+              "applied_force_n", "eta_norm", "assist_enabled", "losses")  # fmt: skip
+
+
+def test_killed_and_resumed_run_equals_the_uninterrupted_one(tmp_path) -> None:
+    """Resume continues bit for bit on CPU (env rows, RNG streams, episode counters, history
+    buffers, curriculum statistics, logger), here with the bound shrinking every iteration."""
+    ppo = dataclasses.replace(TINY_PPO, assist_init_noise_std=0.02)
+    whole = train(tiny_config(tmp_path, "a2cf", iterations=4, run_name="whole", ppo=ppo),
+                  verbose=False)  # fmt: skip
+    part = train(tiny_config(tmp_path, "a2cf", iterations=2, run_name="part", ppo=ppo),
+                 verbose=False)  # fmt: skip
+    log_before = read_jsonl(part.run_dir / CURRICULUM_LOG)
+    assert log_before[1]["eta"] != log_before[0]["eta"]  # the bound moved before the "kill"
+    resumed = train(TrainConfig(resume=str(part.run_dir), iterations=4), verbose=False)
+    assert resumed.iterations_done == 4
+    a, b = whole.metrics["iterations"], resumed.metrics["iterations"]
+    assert [r["iteration"] for r in b] == [0, 1, 2, 3]
+    for row_a, row_b in zip(a, b, strict=True):
+        assert {k: row_a[k] for k in PLAIN_KEYS} == {k: row_b[k] for k in PLAIN_KEYS}, row_a[
+            "iteration"
+        ]
+    assert read_jsonl(whole.run_dir / CURRICULUM_LOG) == read_jsonl(part.run_dir / CURRICULUM_LOG)
+    wa = torch.load(whole.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    wb = torch.load(part.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    for key, value in wa["actor_state_dict"].items():
+        assert torch.equal(value, wb["actor_state_dict"][key]), key
+
+
+def test_training_runs_rsl_rl_own_loop() -> None:
+    """No copy of OnPolicyRunner.learn anywhere in rl/: the curriculum is an env event."""
+    from pathlib import Path
+
+    from rsl_rl.runners import OnPolicyRunner
+
+    from rl.runner import A2CFRunner
+
+    assert A2CFRunner.learn is OnPolicyRunner.learn
+    sources = Path(__file__).resolve().parents[1].joinpath("rl").rglob("*.py")
+    assert not [p for p in sources if "def learn(" in p.read_text()]
+
+
+def test_resume_says_which_flags_it_does_not_apply(tmp_path, capsys) -> None:
+    run = train(tiny_config(tmp_path, "a2cf", iterations=1), verbose=False).run_dir
+    argv = ["train", "--resume", str(run), "--iterations", "2", "--env-num-envs", "8",
+            "--ppo-learning-rate", "0.5", "--task-reward-weight", "alive=3"]  # fmt: skip
+    assert cli_main(argv) == 0
+    err = capsys.readouterr().err
+    assert "not applied: --env-num-envs --ppo-learning-rate --task-reward-weight" in err
+    saved = json.loads((run / "config.json").read_text())["train"]
+    assert saved["env"]["num_envs"] == 4 and saved["ppo"]["learning_rate"] == 1e-3
+
+
+def test_cli_task_and_env_flags_reach_the_run(tmp_path) -> None:
+    argv = [
+        "train", "--env-num-envs", "2", "--env-num-threads", "1", "--iterations", "1",
+        "--num-steps-per-env", "4", "--out", str(tmp_path), "--run-name", "flags",
+        "--ppo-num-mini-batches", "1", "--ppo-num-learning-epochs", "1", "--no-export-onnx",
+        "--model-motion-hidden-dims", "8", "--model-critic-hidden-dims", "8",
+        "--model-encoder-hidden-dims", "8", "--model-assist-hidden-dims", "8",
+        "--task-pushes-velocity-xy-mps", "0.25", "--task-reward-weight", "upright=2",
+        "--task-term-param", "tilted.max_tilt_rad=0.6", "--no-task-scene-link-collisions",
+    ]  # fmt: skip
+    assert cli_main(argv) == 0
+    config = json.loads((tmp_path / "flags" / "config.json").read_text())
+    assert config["train"]["task_overrides"] == {
+        "pushes.velocity_xy_mps": 0.25, "scene.link_collisions": False,
+        "reward_weights": {"upright": 2.0}, "term_params": {"tilted": {"max_tilt_rad": 0.6}},
+    }  # fmt: skip
+    task = config["task"]
+    assert task["pushes"]["velocity_xy_mps"] == 0.25 and not task["scene"]["link_collisions"]
+    weights = {t["name"]: t["weight"] for t in task["rewards"]}
+    assert weights["upright"] == 2.0 and weights["alive"] == 1.0
+    bad = argv[:-3] + ["--task-term-param", "tilted.tilt=1", "--run-name", "bad"]
+    assert cli_main(bad) == 2 and not (tmp_path / "bad").exists()

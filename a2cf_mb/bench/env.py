@@ -27,8 +27,9 @@ from mujoco import rollout
 
 from a2cf_mb.bench import register_benchmark
 from a2cf_mb.bench.sim import SimBenchConfig, _rollout_rate
-from rl.envs import G1VecEnv, make_env
 from rl.envs.model import CONTROL_SPEC
+from rl.envs.vec_env import G1VecEnv
+from rl.registry import get_task, make_env
 from robots import g1
 
 
@@ -44,6 +45,10 @@ class EnvBenchConfig:
     task: str = "stand"  # registered task of the env
     action_std: float = 0.5  # std of the random actions [-]
     seed: int = 0  # random seed [-]
+    link_collisions: tuple[str, ...] = (
+        "on",
+        "off",
+    )  # link collision primitives: on, off or both [-]
     output: str = ""  # optional json file for the figures
 
 
@@ -97,14 +102,18 @@ def _time_physics(env: G1VecEnv, runner: rollout.Rollout, datas, states, control
     return time.perf_counter() - start
 
 
-def measure_size(num_envs: int, cfg: EnvBenchConfig) -> dict:
+def measure_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = True) -> dict:
     """Figures for one batch size.
 
     Env and physics are timed in alternating chunks of ``CHUNK`` steps, so the load of other
     processes on this shared machine hits both alike; each repeat gives one rate per side and the
     best repeat of each is reported.
     """
-    env = make_env(cfg.task, num_envs, num_threads=cfg.num_threads, seed=cfg.seed)
+    task = get_task(cfg.task)
+    task = dataclasses.replace(
+        task, scene=dataclasses.replace(task.scene, link_collisions=link_collisions)
+    )
+    env = make_env(task, num_envs, num_threads=cfg.num_threads, seed=cfg.seed)
     generator = torch.Generator().manual_seed(cfg.seed)
     for _ in range(cfg.warmup_steps):
         env.step(_random_actions(env, cfg, generator))
@@ -138,18 +147,27 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig) -> dict:
         "env_over_physics": float(np.median(ratios)),
         "env_over_sim_ceiling": env_rate * dec / ceiling,
         "diverged_envs": env.diverged_total,
+        "model_bytes": int(env.model.nbuffer),
+        "model_copies": len({id(m) for m in env.models}),
     }
     env.close()
     return figures
 
 
 def run_env_benchmark(cfg: EnvBenchConfig = EnvBenchConfig()) -> dict:
-    """Measure env and physics-only rates for each batch size; return the figures."""
+    """Measure env and physics-only rates for each batch size (and link-collision setting)."""
+    for value in cfg.link_collisions:
+        if value not in ("on", "off"):
+            raise ValueError(f"bench env --link-collisions takes on and/or off, got '{value}'")
     results: dict = {
         "config": dataclasses.asdict(cfg),
         "mujoco": mujoco.__version__,
         "torch_threads": torch.get_num_threads(),
-        "sizes": {str(n): measure_size(n, cfg) for n in cfg.num_envs},
+        "sizes": {
+            f"{n} links {lc}": measure_size(n, cfg, link_collisions=lc == "on")
+            for n in cfg.num_envs
+            for lc in cfg.link_collisions
+        },
     }
     results["threads"] = next(iter(results["sizes"].values()))["threads"]
     return results
@@ -160,13 +178,14 @@ def format_results(results: dict) -> str:
     lines = [
         f"G1VecEnv ({results['config']['task']}), MuJoCo {results['mujoco']}, "
         f"{results['threads']} physics thread(s), policy steps of all envs per second:",
-        f"  {'N':>5} {'env':>9} {'physics':>9} {'sim':>9}  env/physics  env/sim",
+        f"  {'N, link primitives':>18} {'env':>9} {'physics':>9} {'sim':>9}  env/physics  env/sim"
+        "  model MB",
     ]
     for n, r in results["sizes"].items():
         lines.append(
-            f"  {n:>5} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "
+            f"  {n:>18} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "
             f"{r['sim_ceiling_env_steps_per_s']:>9.0f}  {r['env_over_physics']:>11.2f}  "
-            f"{r['env_over_sim_ceiling']:>7.2f}"
+            f"{r['env_over_sim_ceiling']:>7.2f}  {r['model_bytes'] / 1e6:>8.2f}"
         )
     return "\n".join(lines)
 

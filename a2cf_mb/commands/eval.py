@@ -10,7 +10,7 @@ from a2cf_mb.config_cli import add_config_arguments, config_from_args
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``eval`` subcommand."""
-    from rl.runner import EvalConfig
+    from rl.evaluate import EvalConfig
 
     parser = subparsers.add_parser(
         "eval",
@@ -22,8 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Call :func:`rl.runner.evaluate` and print its result."""
-    from rl.runner import EvalConfig, evaluate
+    """Call :func:`rl.evaluate.evaluate` and print its result."""
+    from rl.evaluate import EvalConfig, evaluate
 
     print(json.dumps(evaluate(args.run_dir, config_from_args(EvalConfig, args)), indent=2))
     return 0

@@ -3,50 +3,111 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import sys
+from typing import Any
 
-from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from a2cf_mb.config_cli import add_config_arguments, config_from_args, given_flags
 
-NESTED = ("ppo", "model", "curriculum")
+TASK_PREFIX = "task."
+NOT_FLAGS = ("task_overrides",)
+ALWAYS_APPLIED_ON_RESUME = ("resume", "iterations")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the ``train`` subcommand (one flag per TrainConfig field, nested ones prefixed)."""
-    from rl.curriculum import CurriculumConfig
-    from rl.runner import ModelConfig, PPOConfig, TrainConfig
+    """Add the ``train`` subcommand: TrainConfig fields, nested ones prefixed (``--env-*``,
+    ``--ppo-*``, ``--model-*``, ``--curriculum-*``), and the task's fields as ``--task-*``."""
+    from rl.registry import get_task
+    from rl.tasks.config import TaskConfig
+    from rl.train_config import TrainConfig
 
     parser = subparsers.add_parser(
         "train",
         help="train a task (modes: baseline, a2cf, no-pi, no-id, no-rm); --resume RUN_DIR continues",
         description="Joint PPO (rsl-rl) over motion + assist actions with the A2CF curriculum. "
-        "Writes a run folder (config, checkpoints, TensorBoard, curriculum log, metrics, ONNX).",
+        "Writes a run folder (config, checkpoints, TensorBoard, curriculum log, metrics, ONNX). "
+        "--task-* flags change the chosen task's config (defaults shown are those of 'stand'; "
+        "`a2cf-mb list-tasks` lists the tasks and their terms).",
+        allow_abbrev=False,
     )
-    add_config_arguments(parser, TrainConfig, skip=NESTED)
-    add_config_arguments(parser, PPOConfig, prefix="ppo_")
-    add_config_arguments(parser, ModelConfig, prefix="model_")
-    add_config_arguments(parser, CurriculumConfig, prefix="curriculum_")
-    # On --resume the saved config is used; --iterations only overrides it when given.
-    parser.set_defaults(func=run, iterations=None)
+    add_config_arguments(parser, TrainConfig, skip=NOT_FLAGS)
+    add_config_arguments(
+        parser, TaskConfig, prefix=TASK_PREFIX, skip=("name", "description", "observations"),
+        defaults=get_task("stand"),
+    )  # fmt: skip
+    parser.add_argument(
+        "--task-reward-weight", nargs="+", default=[], metavar="NAME=WEIGHT",
+        help="replace the weight of reward terms of the task, e.g. upright=2 termination=-100",
+    )  # fmt: skip
+    parser.add_argument(
+        "--task-term-param",
+        nargs="+",
+        default=[],
+        metavar="TERM.PARAM=VALUE",
+        help="replace a parameter of a reward/termination/observation term, e.g. "
+        "tilted.max_tilt_rad=0.6 base_height.target_m=0.72",
+    )
+    parser.set_defaults(func=run)
+
+
+def _number(text: str, what: str) -> float:
+    from a2cf_mb.config_cli import finite_float
+
+    try:
+        return finite_float(text)
+    except argparse.ArgumentTypeError as err:
+        raise ValueError(f"{what}: {err}") from err
+
+
+def task_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The task changes the flags ask for (stored in ``TrainConfig.task_overrides``)."""
+    overrides: dict[str, Any] = dict(given_flags(args, TASK_PREFIX))
+    weights: dict[str, float] = {}
+    for item in args.task_reward_weight:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise ValueError(f"--task-reward-weight '{item}': write NAME=WEIGHT, e.g. upright=2")
+        weights[name] = _number(value, f"--task-reward-weight {item}")
+    params: dict[str, dict[str, float]] = {}
+    for item in args.task_term_param:
+        key, sep, value = item.partition("=")
+        term, dot, param = key.partition(".")
+        if not sep or not dot or not term or not param:
+            raise ValueError(
+                f"--task-term-param '{item}': write TERM.PARAM=VALUE, e.g. tilted.max_tilt_rad=0.6"
+            )
+        params.setdefault(term, {})[param] = _number(value, f"--task-term-param {item}")
+    if weights:
+        overrides["reward_weights"] = weights
+    if params:
+        overrides["term_params"] = params
+    return overrides
 
 
 def run(args: argparse.Namespace) -> int:
     """Build the TrainConfig from the flags and call :func:`rl.runner.train`."""
-    from rl.curriculum import CurriculumConfig
-    from rl.runner import ModelConfig, PPOConfig, TrainConfig, load_run_config, train
+    from rl.registry import get_task
+    from rl.runner import load_run_config, train
+    from rl.train_config import TrainConfig
 
+    overrides = task_overrides(args)
     if args.resume:
-        iterations = args.iterations or load_run_config(args.resume).iterations
-        cfg = dataclasses.replace(TrainConfig(), resume=args.resume, iterations=iterations)
+        given = given_flags(args)
+        ignored = [d for d in given if d not in ALWAYS_APPLIED_ON_RESUME]
+        ignored += ["task-reward-weight"] * bool(args.task_reward_weight)
+        ignored += ["task-term-param"] * bool(args.task_term_param)
+        if ignored:
+            flags = " ".join("--" + d.replace(".", "-").replace("_", "-") for d in ignored)
+            print(
+                f"a2cf-mb train: warning: --resume continues {args.resume} with its saved config; "
+                f"not applied: {flags}",
+                file=sys.stderr,
+            )
+        saved = load_run_config(args.resume)
+        iterations = args.iterations if "iterations" in given else saved.iterations
+        cfg = TrainConfig(resume=args.resume, iterations=iterations)
     else:
-        if args.iterations is None:
-            args.iterations = TrainConfig.iterations
-        cfg = config_from_args(
-            TrainConfig,
-            args,
-            ppo=config_from_args(PPOConfig, args, prefix="ppo_"),
-            model=config_from_args(ModelConfig, args, prefix="model_"),
-            curriculum=config_from_args(CurriculumConfig, args, prefix="curriculum_"),
-        )
+        cfg = config_from_args(TrainConfig, args, task_overrides=overrides)
+        get_task(cfg.task).with_overrides(overrides)  # bad names fail before any work
     result = train(cfg)
     m = result.metrics
     print(f"run folder: {result.run_dir}")

@@ -92,11 +92,12 @@ class A2CFActor(MLPModel):
         obs_groups: rsl-rl observation sets.
         obs_set: the set of this model ("actor").
         output_dim: ``num_motion_actions`` (no assist head) or ``num_motion_actions + 6``.
-        num_motion_actions: joint actions (29 for the G1).
         latent_dim: VAE latent size.
         encoder_hidden_dims: history-encoder hidden layers.
         motion_hidden_dims: motion-head hidden layers.
-        assist_hidden_dims: assist-head hidden layers.
+        assist_hidden_dims: assist-head hidden layers (sizes: no defaults here, they live once in
+            :class:`rl.train_config.ModelConfig`).
+        num_motion_actions: joint actions (29 for the G1).
         activation: activation name.
         obs_normalization: empirical normalisation of the policy and privileged observations.
         assist_privileged: the assist head reads the privileged group (False: ablation ``no-pi``).
@@ -113,11 +114,12 @@ class A2CFActor(MLPModel):
         obs_groups: dict[str, list[str]],
         obs_set: str,
         output_dim: int,
+        *,
+        latent_dim: int,
+        encoder_hidden_dims: tuple[int, ...],
+        motion_hidden_dims: tuple[int, ...],
+        assist_hidden_dims: tuple[int, ...],
         num_motion_actions: int = 29,
-        latent_dim: int = 16,
-        encoder_hidden_dims: tuple[int, ...] = (256, 128),
-        motion_hidden_dims: tuple[int, ...] = (256, 128, 64),
-        assist_hidden_dims: tuple[int, ...] = (128, 64),
         activation: str = "elu",
         obs_normalization: bool = True,
         assist_privileged: bool = True,

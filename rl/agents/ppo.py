@@ -134,6 +134,10 @@ class A2CFPPO(PPO):
                 for key in ("reconstruction", "velocity", "kl"):
                     sums[f"vae_{key}"] += float(parts[key].detach())
                 num_updates += 1
+        # rsl-rl's PPO update clips the gradient norm over *all* actor parameters, the encoder's
+        # included: stale VAE gradients left here would shrink the next PPO step (and a resumed
+        # run, which starts without them, would diverge from the uninterrupted one).
+        self.vae_optimizer.zero_grad(set_to_none=True)
         return {key: value / max(num_updates, 1) for key, value in sums.items()}
 
     def save(self) -> dict:

@@ -43,8 +43,8 @@ class HistoryEncoder(nn.Module):
         self,
         obs_dim: int,
         history_length: int,
-        latent_dim: int = 16,
-        hidden_dims: tuple[int, ...] = (256, 128),
+        latent_dim: int,
+        hidden_dims: tuple[int, ...],
         activation: str = "elu",
     ) -> None:
         """Build encoder and decoder MLPs."""

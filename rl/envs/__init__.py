@@ -1,9 +1,6 @@
-"""Batched MuJoCo G1 environments for rsl-rl: :class:`G1VecEnv`, its :class:`EnvConfig`,
-:func:`make_env`, the per-step :class:`EnvState` seen by tasks and reward terms."""
+"""Batched MuJoCo G1 environments for rsl-rl: :class:`rl.envs.vec_env.G1VecEnv`, its
+:class:`rl.envs.config.EnvConfig`, the per-step :class:`rl.envs.state.EnvState` seen by task
+terms. Build one with :func:`rl.registry.make_env`.
 
-from rl.envs.config import EnvConfig
-from rl.envs.factory import make_env
-from rl.envs.state import EnvState
-from rl.envs.vec_env import G1VecEnv
-
-__all__ = ["EnvConfig", "EnvState", "G1VecEnv", "make_env"]
+Kept free of imports, so term modules can import the state types without loading the env.
+"""

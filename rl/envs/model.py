@@ -1,11 +1,14 @@
 """The physics model the batched envs step, and where things live in its state and sensor rows.
 
 The env steps a *collision-primitive* G1: :func:`robots.mujoco_model.build_mujoco_spec` with the link
-meshes removed (their inertials come from the URDF, the meshes carry no mass), so only the 8 sole
-spheres touch the floor. Why: a compiled model with meshes is ~36 MB per copy (collision structures),
-which rules out one randomised model per env (512 envs would need ~18 GB), and mesh-floor contacts
-only matter once the robot lies on the ground, which the tasks terminate before. Joint torques are
-added as ``actuatorfrc`` sensors so rewards see the actual (clamped) actuator forces.
+meshes removed (their inertials come from the URDF, the meshes carry no mass), the 8 sole spheres,
+and, when the task's scene asks for it (the default), capsules/boxes fitted to the link meshes
+(:mod:`robots.collision_primitives`) that collide with the floor and terrain but not with each other:
+shins hit stair edges, knees and hands touch the floor in a failed flip, a fallen robot lies on the
+ground. Why not the meshes: a compiled model with meshes is ~36 MB per copy (collision
+structures), which rules out one randomised model per env (512 envs would need ~18 GB). A task's
+terrain hook adds its geoms to the same spec. Joint torques are added as ``actuatorfrc`` sensors so
+rewards see the actual (clamped) actuator forces.
 
 States are ``mjSTATE_FULLPHYSICS`` rows; controls are ``mjSTATE_CTRL | mjSTATE_XFRC_APPLIED`` rows
 (29 joint targets, then ``xfrc_applied`` of every body: world-frame force [N] and torque [Nm] at
@@ -14,6 +17,7 @@ the body's centre of mass).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -27,14 +31,30 @@ CONTROL_SPEC = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLI
 TORQUE_SENSOR_PREFIX = "torque_"
 
 
-def build_physics_model(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.MjModel:
-    """Compile the mesh-free G1 the envs step (a fresh, writable model on every call)."""
+def build_physics_model(
+    cfg: MujocoModelConfig = MujocoModelConfig(),
+    link_collisions: bool = True,
+    terrain: Callable[[mujoco.MjSpec], None] | None = None,
+) -> mujoco.MjModel:
+    """Compile the mesh-free G1 the envs step (a fresh, writable model on every call).
+
+    Args:
+        cfg: the G1 model options (physics step, floor, sole spheres).
+        link_collisions: add the fitted link primitives (collide with floor and terrain).
+        terrain: hook adding terrain geoms to the spec before compiling.
+    """
     spec = build_mujoco_spec(cfg)
     for geom in list(spec.geoms):
         if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
             spec.delete(geom)
     for mesh in list(spec.meshes):
         spec.delete(mesh)
+    if link_collisions:
+        from robots.collision_primitives import add_link_primitives, fit_link_primitives
+
+        add_link_primitives(spec, fit_link_primitives())
+    if terrain is not None:
+        terrain(spec)
     for joint in g1.JOINTS:
         spec.add_sensor(
             name=TORQUE_SENSOR_PREFIX + joint.name,

@@ -8,14 +8,16 @@ observations in the order of :data:`PARAM_NAMES`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 import torch
 
-from rl.envs.config import EnvConfig
 from robots import g1
-from robots.mujoco_model import FLOOR_GEOM
+
+if TYPE_CHECKING:
+    from rl.tasks.config import RandomizationConfig
 
 PARAM_NAMES = ("friction", "payload_kg", "com_offset_x_m", "com_offset_y_m", "com_offset_z_m")
 """Columns of the randomisation parameter tensor (N, 5)."""
@@ -29,7 +31,7 @@ def nominal_params(num_envs: int, model: mujoco.MjModel) -> torch.Tensor:
     return params
 
 
-def sample_params(num: int, cfg: EnvConfig, generator: torch.Generator) -> torch.Tensor:
+def sample_params(num: int, cfg: RandomizationConfig, generator: torch.Generator) -> torch.Tensor:
     """Draw ``num`` parameter rows (num, 5) uniformly from the ranges of ``cfg``."""
     low = torch.tensor(
         [cfg.friction_range[0], cfg.payload_mass_range_kg[0]] + [cfg.com_offset_range_m[0]] * 3
@@ -44,7 +46,9 @@ def sample_params(num: int, cfg: EnvConfig, generator: torch.Generator) -> torch
 class ModelRandomizer:
     """Writes parameter rows into env models, relative to the nominal model's values."""
 
-    contact_geoms: np.ndarray  # ids of sole spheres and floor, whose friction is set
+    contact_geoms: (
+        np.ndarray
+    )  # ids of sole spheres and of the world's colliding geoms (floor, terrain)
     body: int  # id of the payload body
     nominal_mass_kg: float  # payload body mass without payload [kg]
     nominal_ipos_m: np.ndarray  # payload body CoM in its frame without offset [m], (3,)
@@ -57,11 +61,13 @@ class ModelRandomizer:
             body = model.body(payload_body).id
         except KeyError as err:
             raise ValueError(
-                f"EnvConfig.payload_body '{payload_body}' is not a body of the G1 model; use a link "
+                f"randomization payload_body '{payload_body}' is not a body of the G1 model; use a link "
                 f"name such as 'torso_link' or 'pelvis'."
             ) from err
         geoms = [model.geom(f"{s}_{i}").id for s in g1.SOLE_FRAMES for i in range(4)]
-        geoms.append(model.geom(FLOOR_GEOM).id)
+        # Floor and every terrain geom: the ground the soles touch, whatever the task built.
+        world = (model.geom_bodyid == 0) & ((model.geom_contype | model.geom_conaffinity) != 0)
+        geoms.extend(int(i) for i in np.flatnonzero(world))
         return cls(
             contact_geoms=np.array(geoms),
             body=body,
@@ -75,7 +81,7 @@ class ModelRandomizer:
         if self.nominal_mass_kg + payload_mass_range_kg[0] <= 0:
             raise ValueError(
                 f"EnvConfig.payload_mass_range_kg {payload_mass_range_kg} can remove more than the "
-                f"payload body's {self.nominal_mass_kg:.2f} kg; raise its lower end."
+                f"payload body's {self.nominal_mass_kg:.2f} kg; raise its lower end (--task-randomization-payload-mass-range-kg)."
             )
 
     def apply(self, model: mujoco.MjModel, params: np.ndarray) -> None:
@@ -86,7 +92,7 @@ class ModelRandomizer:
         if mass <= 0:
             raise ValueError(
                 f"Payload {payload_kg} kg leaves body {self.body} with mass {mass} kg; raise "
-                f"EnvConfig.payload_mass_range_kg."
+                f"the task's randomization payload_mass_range_kg."
             )
         model.body_mass[self.body] = mass
         # Scale the inertia with the mass (same shape, denser), keep it physical.

@@ -63,3 +63,11 @@ class EnvState:
     )  # (N, 6) pelvis wrench applied this step: force_w [N], torque_w [Nm]
     assist_bound: torch.Tensor  # (N, 6) eta of each env's phase [N, Nm]
     episode_time_s: torch.Tensor  # (N,) time since the env's last reset [s]
+    command: torch.Tensor  # (N, C) the task's command (C = 0 without one)
+    phase: torch.Tensor  # (N,) long, task phase of each env
+    num_phases: int  # number of task phases P [-]
+    randomization_params: torch.Tensor  # (N, 5) domain parameters, see rl.envs.randomization
+    default_joint_pos_rad: torch.Tensor  # (29,) the pose actions are relative to [rad]
+    effort_limit_nm: torch.Tensor  # (29,) actuator effort limits [Nm]
+    weight_n: float  # nominal robot weight m g [N]
+    terminated: torch.Tensor  # (N,) bool, failure this step (all False before terminations run)

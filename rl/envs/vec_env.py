@@ -7,6 +7,12 @@ per-env ``MjModel`` copies (domain randomisation) and a control array holding th
 and the pelvis ``xfrc_applied`` (the assist wrench). Observations, rewards, terminations, pushes and
 resets are torch operations over the whole batch viewing the same memory (no per-env Python loop,
 except for the few envs that reset in a step).
+
+Everything task-specific comes from a :class:`rl.tasks.config.TaskConfig`: the physics scene,
+initial-state distribution, pushes, randomisation ranges, named observation / reward / termination
+terms, command, phases and skill measure. This module never branches on a task. The A2CF
+curriculum (Algorithm 1) runs inside the env as an iteration-rate event
+(:class:`rl.curriculum.CurriculumEvent`), so training uses rsl-rl's own ``OnPolicyRunner.learn``.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from __future__ import annotations
 import copy
 import math
 import os
-from typing import TYPE_CHECKING
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -24,19 +30,22 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from rl import rewards
-from rl.assist import WRENCH_DIM, AssistState
+from rl.assist import DEFAULT_RANDOM_MASK_PROB, WRENCH_DIM, AssistState
+from rl.curriculum import WRENCH_AXES, CurriculumEvent
 from rl.envs.buffers import HistoryBuffer
 from rl.envs.config import EnvConfig
 from rl.envs.model import CONTROL_SPEC, STATE_SPEC, build_physics_model, model_layout
 from rl.envs.randomization import ModelRandomizer, nominal_params, sample_params
 from rl.envs.state import EnvState, quat_multiply, quat_rotate_inverse
+from rl.tasks.config import TaskConfig
+from rl.tasks.terms import ObsGroup
 from robots import g1
 from robots.mujoco_model import MujocoModelConfig
 
-if TYPE_CHECKING:
-    from rl.tasks.base import Task
-
 GRAVITY_MPS2 = 9.81
+
+DERIVED_GROUPS = ("policy_clean", "history", "base_lin_vel")
+"""Groups the env derives from the task's ``policy`` group (see :class:`ObservationsConfig`)."""
 
 
 class G1VecEnv(VecEnv):
@@ -47,7 +56,7 @@ class G1VecEnv(VecEnv):
     """
 
     def __init__(
-        self, cfg: EnvConfig, task: Task, model_cfg: MujocoModelConfig = MujocoModelConfig()
+        self, cfg: EnvConfig, task: TaskConfig, model_cfg: MujocoModelConfig = MujocoModelConfig()
     ) -> None:
         self.cfg = cfg
         self.task = task
@@ -55,24 +64,35 @@ class G1VecEnv(VecEnv):
         self.num_envs = n = cfg.num_envs
         self.num_actions = g1.NUM_JOINTS + WRENCH_DIM
         self.num_phases = task.num_phases
+        self.phase_names = task.phase_names
         self.generator = torch.Generator().manual_seed(cfg.seed)
 
-        self.model = build_physics_model(model_cfg)
+        scene = task.scene
+        model_cfg = MujocoModelConfig(**{**model_cfg.__dict__, "floor": scene.floor})
+        self.model = build_physics_model(model_cfg, scene.link_collisions, scene.terrain)
         self.layout = lay = model_layout(self.model)
         self.physics_dt_s = float(self.model.opt.timestep)
         self.step_dt_s = self.physics_dt_s * cfg.decimation
-        self.max_episode_length = math.ceil(cfg.episode_length_s / self.step_dt_s)
+        self.max_episode_length = math.ceil(task.episode_length_s / self.step_dt_s)
         self.episode_length_buf = torch.zeros(n, dtype=torch.long)
         # Steps since each env's actual reset; runners may overwrite episode_length_buf.
         self._lived_steps = torch.zeros(n, dtype=torch.long)
         self.total_mass_kg = float(self.model.body_subtreemass[0])
+        self.weight_n = self.total_mass_kg * GRAVITY_MPS2
 
-        self._randomizer = ModelRandomizer.for_model(self.model, cfg.payload_body)
-        if cfg.randomize:
-            self._randomizer.check_payload_range(cfg.payload_mass_range_kg)
-        self.models = (
-            [copy.copy(self.model) for _ in range(n)] if cfg.randomize else [self.model] * n
+        rand = task.randomization
+        self._randomizer = ModelRandomizer.for_model(self.model, rand.payload_body)
+        if rand.enabled:
+            self._randomizer.check_payload_range(rand.payload_mass_range_kg)
+        # One model copy per env (redrawn at each reset), or G shared copies drawn once.
+        self._per_env_models = rand.enabled and rand.model_groups == 0
+        num_copies = (
+            (n if rand.model_groups == 0 else min(rand.model_groups, n)) if rand.enabled else 1
         )
+        self._model_copies = (
+            [copy.copy(self.model) for _ in range(num_copies)] if rand.enabled else [self.model]
+        )
+        self.models = [self._model_copies[i % num_copies] for i in range(n)]
         self.num_threads = cfg.num_threads or os.cpu_count() or 1
         self._rollout = rollout.Rollout(nthread=self.num_threads)
         self.physics_datas = [mujoco.MjData(self.model) for _ in range(self.num_threads)]
@@ -97,25 +117,33 @@ class G1VecEnv(VecEnv):
         self.applied_wrench = torch.zeros(n, WRENCH_DIM)
         self.assist_mask = torch.ones(n, WRENCH_DIM)
         self.phase = torch.zeros(n, dtype=torch.long)
+        self.terminated = torch.zeros(n, dtype=torch.bool)
         self.randomization_params = nominal_params(n, self.model)
         self._push_timer_s = torch.zeros(n)
         self.diverged_total = 0
 
-        task.bind(n, self.generator, self.max_episode_length)
+        self.command_gen = task.commands.build(n, self.generator)
+        self.command = torch.zeros(n, task.commands.dim)
+        self.phase_machine = task.phases.build(n, self.generator)
+        self.skill = task.skill.build(self.max_episode_length)
         self.assist = AssistState(
             task.default_assist_bound(),
-            cfg.assist_enabled,
-            cfg.random_mask_prob,
-            cfg.less_assist_reward,
-            self.generator,
+            enabled=True,
+            mask_prob=DEFAULT_RANDOM_MASK_PROB,
+            less_assist_reward=False,
+            generator=self.generator,
         )
-        self._reward_terms = task.reward_terms()
-        self._noise_scale = None  # set after the first observation fixes P
+        self.curriculum_event: CurriculumEvent | None = None
+        self._noise_scale: dict[str, torch.Tensor] = {}
         self.env_state: EnvState
         self.history: HistoryBuffer | None = None
+        if rand.enabled and not self._per_env_models:
+            self._draw_group_models()
         self._reset_envs(torch.arange(n))
         self.env_state = self._read_state()
-        self.phase = task.phase(self.env_state)
+        self.phase = self.phase_machine.update(self.env_state)
+        self.command = self.command_gen.compute(self.env_state, 0.0)
+        self.env_state = self._read_state()
         self._obs = self._observations(reset_ids=torch.arange(n))
 
     # ---------------------------------------------------------------- runner-facing setters
@@ -134,6 +162,24 @@ class G1VecEnv(VecEnv):
     def set_less_assist_reward(self, enabled: bool) -> None:
         """Add (or stop adding) the less-assist reward exp(-2|F|/|eta|) to the task reward."""
         self.assist.less_assist_reward = bool(enabled)
+
+    def attach_curriculum(self, event: CurriculumEvent | None) -> None:
+        """Run Algorithm 1 inside the env (every ``event.steps_per_iteration`` steps) and apply its
+        current state now; ``None`` detaches it (the env keeps its last bounds)."""
+        self.curriculum_event = event
+        if event is not None:
+            if event.curriculum.num_phases != self.num_phases:
+                raise ValueError(
+                    f"curriculum has {event.curriculum.num_phases} phases, task '{self.task.name}' "
+                    f"has {self.num_phases}"
+                )
+            self._apply_curriculum()
+
+    def _apply_curriculum(self) -> None:
+        cur = self.curriculum_event.curriculum
+        self.set_assist_bound(cur.eta)
+        self.set_assist_enabled(cur.assist_enabled)
+        self.set_less_assist_reward(cur.less_assist_reward)
 
     # ---------------------------------------------------------------- VecEnv API
     def get_observations(self) -> TensorDict:
@@ -197,48 +243,50 @@ class G1VecEnv(VecEnv):
         self.episode_length_buf += 1
         self._lived_steps += 1
         state = self._read_state()
+        per_term = [term(state) for term in self.task.terminations]
+        failed = torch.stack(per_term).any(dim=0) if per_term else torch.zeros(n, dtype=torch.bool)
+        state.terminated = failed
         self.env_state = state
-        terminated = self.task.terminated(state) | diverged
+        terminated = failed | diverged
         time_outs = (self.episode_length_buf >= self.max_episode_length) & ~terminated
         dones = terminated | time_outs
 
-        names = list(self._reward_terms)
-        terms = [t.fn(state) * (t.weight * self.step_dt_s) for t in self._reward_terms.values()]
-        if self.assist.less_assist_reward:
-            names.append("less_assist")
-            weight = self.task.less_assist_weight * self.step_dt_s
-            terms.append(rewards.less_assist(wrench, bound) * weight)
-        weighted = torch.stack(terms)  # (terms, N)
-        reward = weighted.sum(dim=0)
-        log: dict[str, float] = {
-            f"Reward/{name}": value
-            for name, value in zip(names, weighted.mean(dim=1).tolist(), strict=True)
-        }
+        reward, log = self._reward(state, wrench, bound)
         reward = torch.where(diverged, torch.zeros_like(reward), torch.nan_to_num(reward))
 
         done_ids = dones.nonzero().flatten()
         if done_ids.numel():
-            self.task.on_episodes_end(done_ids, time_outs[done_ids], self._lived_steps[done_ids])
+            self.skill.on_episodes_end(done_ids, time_outs[done_ids], self._lived_steps[done_ids])
         self.last_action = self.action.clone()
         if done_ids.numel():
             self._reset_envs(done_ids)
             state = self._read_state()
-            self.env_state = state
-        self.phase = self.task.phase(state)
+        self.phase = self.phase_machine.update(state)
+        self.command = self.command_gen.compute(state, self.step_dt_s)
+        self.env_state = self._read_state(terminated=failed)
         self._obs = self._observations(reset_ids=done_ids)
 
+        for term, value in zip(self.task.terminations, per_term, strict=True):
+            log[f"Termination/{term.name}"] = float(value.float().mean())
         log["Episode/diverged_envs"] = float(num_diverged)
         log["Episode/diverged_envs_total"] = float(self.diverged_total)
         log["Episode/nonfinite_action_envs"] = float(nonfinite_actions)
         log["Episode/terminated"] = float(terminated.float().mean())
         log["Assist/force_norm_n"] = float(wrench[:, :3].norm(dim=-1).mean())
         log["Assist/torque_norm_nm"] = float(wrench[:, 3:].norm(dim=-1).mean())
-        progress = self.task.skill_progress()
+        log["Train/mean_step_reward"] = float(reward.mean())
+        progress = self.skill.progress()
         log["Episode/skill_progress"] = progress
+        assist = {"applied_wrench": wrench, "bound": bound, "phase": applied_phase}
+        if self.curriculum_event is not None:
+            row = self.curriculum_event.on_step(assist, progress)
+            if row is not None:
+                self._apply_curriculum()
+                log.update(self._curriculum_log(row))
         extras = {
             "time_outs": time_outs,
             "log": log,
-            "assist": {"applied_wrench": wrench, "bound": bound, "phase": applied_phase},
+            "assist": assist,
             "skill_progress": progress,
         }
         return self._obs, reward, dones, extras
@@ -249,23 +297,136 @@ class G1VecEnv(VecEnv):
             self._rollout.close()
             self._rollout = None
 
+    # ---------------------------------------------------------------- checkpointing
+    def state_dict(self) -> dict[str, Any]:
+        """Everything that evolves while stepping: physics rows, RNG stream, counters, buffers,
+        randomisation, task components and the curriculum event. With :meth:`load_state_dict`
+        a resumed run continues bit for bit (on CPU)."""
+        return {
+            "state": self.state.copy(),
+            "sensordata": self.sensordata.copy(),
+            "generator": self.generator.get_state(),
+            "episode_length_buf": self.episode_length_buf.clone(),
+            "lived_steps": self._lived_steps.clone(),
+            "action": self.action.clone(),
+            "last_action": self.last_action.clone(),
+            "applied_wrench": self.applied_wrench.clone(),
+            "assist_mask": self.assist_mask.clone(),
+            "phase": self.phase.clone(),
+            "command": self.command.clone(),
+            "randomization_params": self.randomization_params.clone(),
+            "push_timer_s": self._push_timer_s.clone(),
+            "history": self.history.buffer.clone(),
+            "obs": self._obs.clone(),
+            "diverged_total": self.diverged_total,
+            "assist": {
+                "bound": self.assist.bound.clone(),
+                "enabled": self.assist.enabled,
+                "mask_prob": self.assist.mask_prob,
+                "less_assist_reward": self.assist.less_assist_reward,
+            },
+            "command_gen": self.command_gen.state_dict(),
+            "phase_machine": self.phase_machine.state_dict(),
+            "skill": self.skill.state_dict(),
+            "curriculum_event": (
+                self.curriculum_event.state_dict() if self.curriculum_event is not None else None
+            ),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output of an env of the same task, size and config."""
+        if state["state"].shape != self.state.shape:
+            raise ValueError(
+                f"env checkpoint holds {state['state'].shape[0]} envs of state width "
+                f"{state['state'].shape[1]}, this env has {self.num_envs} x {self.state.shape[1]}: "
+                "resume with the run's own config"
+            )
+        self.state[:] = state["state"]
+        self.sensordata[:] = state["sensordata"]
+        self.generator.set_state(state["generator"])
+        self.episode_length_buf = state["episode_length_buf"].clone()
+        self._lived_steps = state["lived_steps"].clone()
+        self.action = state["action"].clone()
+        self.last_action = state["last_action"].clone()
+        self.applied_wrench = state["applied_wrench"].clone()
+        self.assist_mask = state["assist_mask"].clone()
+        self.phase = state["phase"].clone()
+        self.command = state["command"].clone()
+        self.randomization_params = state["randomization_params"].clone()
+        if self.task.randomization.enabled:
+            params = self.randomization_params.double().numpy()
+            for i, model in enumerate(self._model_copies):
+                self._randomizer.apply(model, params[i])
+        self._push_timer_s = state["push_timer_s"].clone()
+        self.history.buffer = state["history"].clone()
+        self._obs = state["obs"].clone()
+        self.diverged_total = int(state["diverged_total"])
+        assist = state["assist"]
+        self.assist.set_bound(assist["bound"])
+        self.assist.enabled = bool(assist["enabled"])
+        self.assist.set_mask_prob(assist["mask_prob"])
+        self.assist.less_assist_reward = bool(assist["less_assist_reward"])
+        self.command_gen.load_state_dict(state["command_gen"])
+        self.phase_machine.load_state_dict(state["phase_machine"])
+        self.skill.load_state_dict(state["skill"])
+        if state["curriculum_event"] is not None:
+            if self.curriculum_event is None:
+                raise ValueError("env checkpoint has a curriculum; attach one before loading")
+            self.curriculum_event.load_state_dict(state["curriculum_event"])
+        self.env_state = self._read_state()
+
     # ---------------------------------------------------------------- internals
+    def _reward(
+        self, state: EnvState, wrench: torch.Tensor, bound: torch.Tensor
+    ) -> tuple[torch.Tensor, dict[str, float]]:
+        """Weighted sum of the task's reward terms (+ less-assist when on) and their log."""
+        dt = self.step_dt_s
+        terms = self.task.rewards
+        names = [t.name for t in terms]
+        values = [t(state) * (t.weight * dt) for t in terms]
+        if self.assist.less_assist_reward:
+            names.append("less_assist")
+            values.append(rewards.less_assist(wrench, bound) * (self.task.less_assist_weight * dt))
+        weighted = torch.stack(values)  # (terms, N)
+        log = {
+            f"Reward/{name}": value
+            for name, value in zip(names, weighted.mean(dim=1).tolist(), strict=True)
+        }
+        return weighted.sum(dim=0), log
+
+    def _curriculum_log(self, row: dict[str, Any]) -> dict[str, float]:
+        """TensorBoard scalars of one curriculum update (logged once, at the rollout's end)."""
+        log = {
+            "Curriculum/applied_force_n": float(row["applied_force_n"]),
+            "Curriculum/skill_progress": float(row["skill_progress"]),
+            "Curriculum/assist_enabled": float(row["assist_enabled"]),
+            "Curriculum/less_assist_reward": float(row["less_assist_reward"]),
+        }
+        for phase, bounds, norm in zip(
+            self.phase_names, row["eta"], row["applied_norm"], strict=True
+        ):
+            for axis, value in zip(WRENCH_AXES, bounds, strict=True):
+                log[f"Curriculum/eta_{phase}_{axis}"] = float(value)
+            log[f"Curriculum/applied_wrench_norm_{phase}"] = float(norm)
+        return log
+
     def _push(self) -> None:
         """Velocity kicks: envs whose push timer ran out get a random horizontal base velocity."""
-        if not self.cfg.pushes:
+        pushes = self.task.pushes
+        if not pushes.enabled:
             return
         self._push_timer_s -= self.step_dt_s
         ids = (self._push_timer_s <= 0).nonzero().flatten()
         if ids.numel() == 0:
             return
-        vmax = self.cfg.push_velocity_xy_mps
+        vmax = pushes.velocity_xy_mps
         kick = (2 * torch.rand(ids.numel(), 2, generator=self.generator) - 1) * vmax
         qv0 = self.layout.qvel.start
         self._state_t[ids, qv0 : qv0 + 2] += kick.double()
         self._push_timer_s[ids] = self._sample_push_interval(ids.numel())
 
     def _sample_push_interval(self, num: int) -> torch.Tensor:
-        low, high = self.cfg.push_interval_range_s
+        low, high = self.task.pushes.interval_range_s
         return low + (high - low) * torch.rand(num, generator=self.generator)
 
     def _diverged(self, time_in: np.ndarray) -> torch.Tensor:
@@ -279,31 +440,41 @@ class G1VecEnv(VecEnv):
             calm = np.abs(self.state[:, lay.qvel]).max(axis=1) < self.cfg.max_abs_qvel
         return torch.from_numpy(~(finite & clock_ok & calm))
 
+    def _draw_group_models(self) -> None:
+        """Shared-model randomisation: draw the G copies once; env i reports copy i % G."""
+        g = len(self._model_copies)
+        params = sample_params(g, self.task.randomization, self.generator)
+        for model, row in zip(self._model_copies, params.double().numpy(), strict=True):
+            self._randomizer.apply(model, row)
+        self.randomization_params = params[torch.arange(self.num_envs) % g].clone()
+
     def _reset_envs(self, env_ids: torch.Tensor) -> None:
-        """Put ``env_ids`` (M,) back to a (noisy) standing state with fresh randomisation."""
-        cfg, lay = self.cfg, self.layout
+        """Put ``env_ids`` (M,) back to a state of the task's initial-state distribution, with
+        fresh randomisation (per-env models)."""
+        init, lay = self.task.initial_state, self.layout
         m = env_ids.numel()
         gen = self.generator
         rows = torch.as_tensor(lay.stand_state, dtype=torch.float64).repeat(m, 1)
         q0, v0 = lay.qpos.start, lay.qvel.start
         joint_noise = (2 * torch.rand(m, g1.NUM_JOINTS, generator=gen) - 1) * (
-            cfg.reset_joint_pos_noise_rad
+            init.joint_pos_noise_rad
         )
         rows[:, q0 + 7 : q0 + 7 + g1.NUM_JOINTS] += joint_noise.double()
-        if cfg.reset_random_yaw:
+        if init.random_yaw:
             yaw = (2 * torch.rand(m, generator=gen) - 1) * math.pi
             yaw_quat = torch.stack(
                 [torch.cos(yaw / 2), torch.zeros(m), torch.zeros(m), torch.sin(yaw / 2)], dim=-1
             )
             rows[:, q0 + 3 : q0 + 7] = quat_multiply(yaw_quat.double(), rows[:, q0 + 3 : q0 + 7])
-        base_vel = (2 * torch.rand(m, 6, generator=gen) - 1) * cfg.reset_base_vel_noise_mps
+        base_vel = (2 * torch.rand(m, 6, generator=gen) - 1) * init.base_vel_noise
         rows[:, v0 : v0 + 6] = base_vel.double()
         rows[:, lay.time] = 0.0
-        self.task.reset_state(env_ids, rows[:, lay.qpos], rows[:, lay.qvel])  # views: in place
+        if init.reset_state is not None:
+            init.reset_state(env_ids, rows[:, lay.qpos], rows[:, lay.qvel], gen)  # views: in place
         self._state_t[env_ids] = rows
 
-        if cfg.randomize:
-            params = sample_params(m, cfg, gen)
+        if self._per_env_models:
+            params = sample_params(m, self.task.randomization, gen)
             self.randomization_params[env_ids] = params
             for i, row in zip(env_ids.tolist(), params.double().numpy(), strict=True):
                 self._randomizer.apply(self.models[i], row)
@@ -315,7 +486,8 @@ class G1VecEnv(VecEnv):
         self.last_action[env_ids] = 0.0
         self.applied_wrench[env_ids] = 0.0
         self._push_timer_s[env_ids] = self._sample_push_interval(m)
-        self.task.reset(env_ids)
+        self.command_gen.reset(env_ids)
+        self.phase_machine.reset(env_ids)
 
     def _refresh_sensors(self, env_ids: torch.Tensor) -> None:
         """Recompute the sensor rows of freshly reset envs (contacts, torques at the stand targets)."""
@@ -328,7 +500,7 @@ class G1VecEnv(VecEnv):
             mujoco.mj_forward(model, data)
             self.sensordata[i] = data.sensordata
 
-    def _read_state(self) -> EnvState:
+    def _read_state(self, terminated: torch.Tensor | None = None) -> EnvState:
         """Batch state as float32 tensors from the state and sensor rows."""
         lay = self.layout
         qpos = self._state_t[:, lay.qpos].float()
@@ -336,16 +508,14 @@ class G1VecEnv(VecEnv):
         sens = self._sensor_t.float()
         quat = qpos[:, 3:7]
         lin_vel_w = qvel[:, 0:3]
-        gravity_w = self._gravity_dir_w
         foot_pos = torch.stack([sens[:, lay.foot_pos[0]], sens[:, lay.foot_pos[1]]], dim=1)
-        bound = self.assist.bound[self.phase]
         return EnvState(
             base_pos_w=qpos[:, 0:3],
             base_quat_w=quat,
             base_lin_vel_w=lin_vel_w,
             base_lin_vel_b=quat_rotate_inverse(quat, lin_vel_w),
             base_ang_vel_b=qvel[:, 3:6],
-            projected_gravity_b=quat_rotate_inverse(quat, gravity_w),
+            projected_gravity_b=quat_rotate_inverse(quat, self._gravity_dir_w),
             joint_pos_rad=qpos[:, 7:],
             joint_vel_rps=qvel[:, 6:],
             joint_torque_nm=sens[:, lay.torque],
@@ -354,84 +524,79 @@ class G1VecEnv(VecEnv):
             action=self.action,
             last_action=self.last_action,
             applied_wrench=self.applied_wrench,
-            assist_bound=bound,
+            assist_bound=self.assist.bound[self.phase],
             episode_time_s=self.episode_length_buf.float() * self.step_dt_s,
+            command=self.command,
+            phase=self.phase,
+            num_phases=self.num_phases,
+            randomization_params=self.randomization_params,
+            default_joint_pos_rad=self._stand_rad,
+            effort_limit_nm=self._effort_nm,
+            weight_n=self.weight_n,
+            terminated=(
+                terminated
+                if terminated is not None
+                else torch.zeros(self.num_envs, dtype=torch.bool)
+            ),
         )
 
-    def _noise(self, width: int) -> torch.Tensor:
-        """Per-column uniform noise amplitude of the policy observation (width P)."""
-        cfg = self.cfg
-        j = g1.NUM_JOINTS
-        scale = torch.zeros(width)
-        if cfg.noise:
-            scale[0:3] = cfg.noise_ang_vel_rps
-            scale[3:6] = cfg.noise_gravity
-            scale[6 : 6 + j] = cfg.noise_joint_pos_rad
-            scale[6 + j : 6 + 2 * j] = cfg.noise_joint_vel_rps
-        return scale
+    def _group(self, name: str, group: ObsGroup, s: EnvState) -> tuple[torch.Tensor, torch.Tensor]:
+        """(clean, noisy) values of a group: its terms (scaled) concatenated, and the same plus
+        each term's uniform noise when the group is noisy (else the clean tensor itself)."""
+        parts = [term(s) * term.scale if term.scale != 1.0 else term(s) for term in group.terms]
+        clean = torch.cat(parts, dim=-1)
+        if not group.noisy:
+            return clean, clean
+        if name not in self._noise_scale:
+            widths = torch.tensor([p.shape[1] for p in parts])
+            amplitude = [term.noise if self.cfg.noise else 0.0 for term in group.terms]
+            self._noise_scale[name] = torch.repeat_interleave(
+                torch.tensor(amplitude, dtype=torch.float32), widths
+            )
+        noise = 2 * torch.rand(clean.shape, generator=self.generator) - 1
+        return clean, clean + noise * self._noise_scale[name]
+
+    def observation_layout(self) -> dict[str, list[tuple[str, int, int]]]:
+        """Per group: (term name, first column, width) in column order (``policy_clean`` has the
+        policy layout; ``history`` is H policy rows, oldest first)."""
+        s = self.env_state
+        layout: dict[str, list[tuple[str, int, int]]] = {}
+        for name in ("policy", "privileged", "critic"):
+            group: ObsGroup = getattr(self.task.observations, name)
+            col = 0
+            layout[name] = []
+            for term in group.terms:
+                width = int(term(s).shape[1])
+                layout[name].append((term.name, col, width))
+                col += width
+        layout["policy_clean"] = layout["policy"]
+        return layout
+
+    def observation_term(self, group: str, term: str) -> torch.Tensor:
+        """The columns of one named term in the current observation group (N, D)."""
+        for name, start, width in self.observation_layout()[group]:
+            if name == term:
+                return self._obs[group][:, start : start + width]
+        raise KeyError(f"observation group '{group}' has no term '{term}'")
 
     def _observations(self, reset_ids: torch.Tensor) -> TensorDict:
         """Build all observation groups from :attr:`env_state`; fill the history of reset envs."""
         s = self.env_state
-        n = self.num_envs
-        commands = self.task.commands(s)
-        clean = torch.cat(
-            [
-                s.base_ang_vel_b,
-                s.projected_gravity_b,
-                s.joint_pos_rad - self._stand_rad,
-                s.joint_vel_rps,
-                self.last_action,
-                commands,
-            ],
-            dim=-1,
-        )
-        if self._noise_scale is None:
-            self._noise_scale = self._noise(clean.shape[1])
-        noisy = clean + (2 * torch.rand(clean.shape, generator=self.generator) - 1) * (
-            self._noise_scale
-        )
+        groups = self.task.observations
+        clean, noisy = self._group("policy", groups.policy, s)
         if self.history is None:
-            self.history = HistoryBuffer(n, self.cfg.history_length, clean.shape[1])
+            self.history = HistoryBuffer(self.num_envs, self.cfg.history_length, clean.shape[1])
         self.history.push(noisy)
         if reset_ids.numel():
             self.history.fill(reset_ids, noisy[reset_ids])
-        weight_n = self.total_mass_kg * GRAVITY_MPS2
-        phase_one_hot = torch.nn.functional.one_hot(self.phase, self.num_phases).float()
-        privileged = torch.cat(
-            [
-                s.base_lin_vel_b,
-                self.assist.bound[self.phase],
-                self.randomization_params,
-                phase_one_hot,
-                s.foot_contact_force_n / weight_n,
-                self.task.privileged_extras(s),
-            ],
-            dim=-1,
-        )
-        feet_rel_b = torch.cat(
-            [quat_rotate_inverse(s.base_quat_w, s.foot_pos_w[:, k] - s.base_pos_w) for k in (0, 1)],
-            dim=-1,
-        )
-        critic = torch.cat(
-            [
-                clean,
-                privileged,
-                s.base_pos_w[:, 2:3],
-                feet_rel_b,
-                self.applied_wrench / weight_n,
-                s.joint_torque_nm / self._effort_nm,
-            ],
-            dim=-1,
-        )
         return TensorDict(
             {
                 "policy": noisy,
                 "history": self.history.flat().clone(),
-                "privileged": privileged,
-                "critic": critic,
+                "privileged": self._group("privileged", groups.privileged, s)[1],
+                "critic": self._group("critic", groups.critic, s)[1],
                 "base_lin_vel": s.base_lin_vel_b.clone(),
                 "policy_clean": clean,
             },
-            batch_size=[n],
+            batch_size=[self.num_envs],
         )

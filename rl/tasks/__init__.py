@@ -1,14 +1,5 @@
-"""Tasks (skills) for the G1 env: the :class:`Task` interface and the registry :data:`TASKS`."""
+"""Tasks (skills) for the G1 env: each a :class:`rl.tasks.config.TaskConfig` of named terms
+(:mod:`rl.tasks.terms`), e.g. :data:`rl.tasks.stand.STAND`; the registry is :mod:`rl.registry`.
 
-from collections.abc import Callable
-
-from rl.envs.factory import make_env
-from rl.tasks.base import RewardTerm, Task
-from rl.tasks.stand import StandConfig, StandTask
-
-TASKS: dict[str, Callable[[], Task]] = {
-    StandTask.name: StandTask,
-}
-"""Task name -> factory of a task with its default config."""
-
-__all__ = ["TASKS", "RewardTerm", "StandConfig", "StandTask", "Task", "make_env"]
+Kept free of imports: env code imports the config types without loading any task.
+"""

@@ -1,0 +1,80 @@
+"""The task registry, above the env and the tasks (both import neither this nor each other's
+registry): task name -> :class:`rl.tasks.config.TaskConfig`, and :func:`make_env`.
+
+A new task is one module defining its ``TaskConfig`` plus one line in :data:`TASKS` (or a call of
+:func:`register_task` from user code or a test).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from rl.envs.config import EnvConfig
+from rl.envs.vec_env import G1VecEnv
+from rl.tasks.config import TaskConfig
+from rl.tasks.stand import STAND
+
+TASKS: dict[str, TaskConfig] = {
+    STAND.name: STAND,
+}
+"""Registered tasks by name, each with its default config."""
+
+
+def register_task(task: TaskConfig, replace: bool = False) -> None:
+    """Add ``task`` to :data:`TASKS` (``replace`` to overwrite a registered name)."""
+    if task.name in TASKS and not replace:
+        raise ValueError(f"a task named '{task.name}' is already registered")
+    TASKS[task.name] = task
+
+
+def get_task(name: str) -> TaskConfig:
+    """The registered task ``name`` or a clear error listing the registered ones."""
+    if name not in TASKS:
+        raise ValueError(
+            f"unknown task '{name}'; registered tasks: {sorted(TASKS)} (see list-tasks)"
+        )
+    return TASKS[name]
+
+
+def make_env(task: str | TaskConfig, num_envs: int | None = None, **overrides: Any) -> G1VecEnv:
+    """Build the env of ``task`` (a registered name or a config).
+
+    ``num_envs`` and ``overrides`` replace fields of :class:`EnvConfig` (e.g. ``seed=1``).
+    """
+    task_cfg = get_task(task) if isinstance(task, str) else task
+    fields = {f.name for f in dataclasses.fields(EnvConfig)}
+    unknown = sorted(set(overrides) - fields)
+    if unknown:
+        raise ValueError(
+            f"make_env: {unknown} are not EnvConfig fields; valid overrides: {sorted(fields)}."
+        )
+    if num_envs is not None:
+        overrides["num_envs"] = num_envs
+    return G1VecEnv(EnvConfig(**overrides), task_cfg)
+
+
+def describe_tasks(history_length: int = EnvConfig.history_length) -> list[dict[str, Any]]:
+    """Per registered task: name, description, phases, observation group sizes, term names.
+
+    Builds a one-env instance of each task (about a second each) to measure the group widths.
+    """
+    rows = []
+    for name, task in TASKS.items():
+        env = make_env(task, 1, num_threads=1, history_length=history_length)
+        try:
+            obs = env.get_observations()
+            rows.append(
+                {
+                    "name": name,
+                    "description": task.description,
+                    "phases": list(task.phase_names),
+                    "observation_sizes": {k: int(v.shape[1]) for k, v in obs.items()},
+                    "rewards": [t.name for t in task.rewards],
+                    "terminations": [t.name for t in task.terminations],
+                    "episode_length_s": task.episode_length_s,
+                }
+            )
+        finally:
+            env.close()
+    return rows

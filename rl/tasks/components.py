@@ -1,0 +1,163 @@
+"""Stateful parts of a task: its command generator, phase machine and skill-progress measure.
+
+A task config names a *config* for each (frozen dataclass with a ``build`` method); the env builds
+the live object once, calls its hooks and checkpoints its :meth:`state_dict` (exact resume). The
+defaults here serve single-phase tasks without a command; walk, dance and backflip bring their own.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from rl.envs.state import EnvState
+
+
+class Component:  # noqa: B024 - a base of optional hooks; subclasses add the abstract ones
+    """Hooks shared by every stateful task part; all optional except what subclasses declare."""
+
+    def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
+        """Re-initialise the per-env state of ``env_ids`` (M,) (they start a new episode)."""
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly after a resume (tensors are cloned)."""
+        return {}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:  # noqa: B027 - optional hook
+        """Restore :meth:`state_dict` output."""
+
+
+# ------------------------------------------------------------------------------------ commands
+class Command(Component, ABC):
+    """Produces the task command (N, C) the policy observes and rewards read."""
+
+    @abstractmethod
+    def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
+        """Advance by one policy step of ``dt_s`` [s] and return the command (N, C)."""
+
+
+@dataclass(frozen=True)
+class NoCommandConfig:
+    """No command: an (N, 0) tensor."""
+
+    dim: int = 0  # command width C (always 0 here) [-]
+
+    def build(self, num_envs: int, generator: torch.Generator) -> Command:
+        """The live command generator."""
+        return _NoCommand(num_envs)
+
+
+class _NoCommand(Command):
+    def __init__(self, num_envs: int) -> None:
+        self._empty = torch.zeros(num_envs, 0)
+
+    def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
+        return self._empty
+
+
+# ------------------------------------------------------------------------------------- phases
+class PhaseMachine(Component, ABC):
+    """Maps the env state to each env's phase index (N,) long, before the wrench is applied."""
+
+    @abstractmethod
+    def update(self, state: EnvState) -> torch.Tensor:
+        """Phase (N,) long of every env after a step (or a reset)."""
+
+
+@dataclass(frozen=True)
+class SinglePhaseConfig:
+    """One phase for the whole episode."""
+
+    names: tuple[str, ...] = ("main",)  # the one phase's name [-]
+
+    def build(self, num_envs: int, generator: torch.Generator) -> PhaseMachine:
+        """The live phase machine."""
+        if len(self.names) != 1:
+            raise ValueError(f"SinglePhaseConfig takes exactly one name, got {self.names}")
+        return _SinglePhase(num_envs)
+
+
+class _SinglePhase(PhaseMachine):
+    def __init__(self, num_envs: int) -> None:
+        self._zeros = torch.zeros(num_envs, dtype=torch.long)
+
+    def update(self, state: EnvState) -> torch.Tensor:
+        return self._zeros
+
+
+# -------------------------------------------------------------------------------- skill measure
+class SkillMeasure(Component, ABC):
+    """Skill relative to its target from finished episodes: >= 1 means learned."""
+
+    @abstractmethod
+    def on_episodes_end(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+    ) -> None:
+        """Record finished episodes: ``env_ids`` (M,), ``time_outs`` (M,) bool (ended by the time
+        limit, not a failure), ``lived_steps`` (M,) long: policy steps since the env's actual
+        reset (runners may start episode counters at random values; such shortened episodes time
+        out early without having survived a full episode)."""
+
+    @abstractmethod
+    def progress(self) -> float:
+        """Skill relative to its target, in [0, 1+]."""
+
+
+@dataclass(frozen=True)
+class SurvivalSkillConfig:
+    """Skill = fraction of recent finished episodes that survived a full episode, over a target."""
+
+    target_survival: float = 0.9  # survival fraction that counts as learned [-]
+    window: int = 256  # finished episodes in the moving window [-]
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.target_survival <= 1.0:
+            raise ValueError(f"target_survival must be in (0, 1], got {self.target_survival}")
+        if self.window < 1:
+            raise ValueError(f"skill window must be >= 1 episode, got {self.window}")
+
+    def build(self, max_episode_length: int) -> SkillMeasure:
+        """The live measure for episodes of ``max_episode_length`` policy steps."""
+        return SurvivalSkill(self, max_episode_length)
+
+
+class SurvivalSkill(SkillMeasure):
+    """Moving window of survived (1) / fell (0) flags; see :class:`SurvivalSkillConfig`."""
+
+    def __init__(self, cfg: SurvivalSkillConfig, max_episode_length: int) -> None:
+        self.cfg = cfg
+        self.max_episode_length = max_episode_length
+        self._window = torch.zeros(cfg.window)
+        self._count = 0
+
+    def on_episodes_end(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+    ) -> None:
+        """Push flags; episodes cut short by a time limit before a full episode are skipped."""
+        fell = ~time_outs
+        survived = time_outs & (lived_steps >= self.max_episode_length)
+        counted = fell | survived
+        flags = survived[counted].to(torch.float32)[-self._window.numel() :]
+        n = flags.numel()
+        if n == 0:
+            return
+        self._window = torch.cat([self._window[n:], flags])
+        self._count = min(self._count + n, self._window.numel())
+
+    def progress(self) -> float:
+        """Survival fraction of the window over ``target_survival`` (0 before any episode)."""
+        if self._count == 0:
+            return 0.0
+        return float(self._window[-self._count :].mean()) / self.cfg.target_survival
+
+    def state_dict(self) -> dict[str, Any]:
+        """Window and fill count."""
+        return {"window": self._window.clone(), "count": self._count}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the window."""
+        self._window = state["window"].clone()
+        self._count = int(state["count"])

@@ -1,0 +1,125 @@
+"""Typed configs of a training run (``a2cf-mb train``) and their JSON round trip."""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from rl.agents.modes import get_mode
+from rl.assist import DEFAULT_RANDOM_MASK_PROB
+from rl.curriculum import CurriculumConfig
+from rl.envs.config import EnvConfig
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """rsl-rl PPO hyper-parameters (rsl-rl / legged-gym defaults)."""
+
+    learning_rate: float = 1e-3  # initial Adam learning rate (adaptive schedule) [-]
+    num_learning_epochs: int = 5  # passes over each rollout [-]
+    num_mini_batches: int = 4  # mini-batches per pass [-]
+    clip_param: float = 0.2  # PPO ratio clip [-]
+    gamma: float = 0.99  # discount per control step [-]
+    lam: float = 0.95  # GAE lambda [-]
+    value_loss_coef: float = 1.0  # weight of the value loss [-]
+    entropy_coef: float = 0.005  # weight of the entropy bonus [-]
+    max_grad_norm: float = 1.0  # gradient-norm clip [-]
+    desired_kl: float = 0.01  # target KL of the adaptive learning-rate schedule [-]
+    init_noise_std: float = 0.5  # initial std of the motion actions (raw action units) [-]
+    assist_init_noise_std: float = 1.0  # initial std of the raw assist actions (before tanh) [-]
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Network sizes and the VAE loss weights (the one place these defaults live)."""
+
+    motion_hidden_dims: tuple[int, ...] = (256, 128, 64)  # motion-head hidden layers [-]
+    assist_hidden_dims: tuple[int, ...] = (128, 64)  # assist-head hidden layers [-]
+    critic_hidden_dims: tuple[int, ...] = (256, 128, 64)  # critic hidden layers [-]
+    encoder_hidden_dims: tuple[int, ...] = (128, 64)  # VAE encoder hidden layers [-]
+    latent_dim: int = 16  # VAE latent size [-]
+    activation: str = "elu"  # activation of every MLP [-]
+    vae_learning_rate: float = 1e-3  # Adam learning rate of the history encoder [-]
+    vae_kl_weight: float = 1e-3  # beta of the beta-VAE [-]
+    vae_velocity_weight: float = 1.0  # weight of the velocity-estimation loss [-]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run; nested configs become ``--env-*``, ``--ppo-*``, ``--model-*`` and
+    ``--curriculum-*`` flags, task fields ``--task-*`` (see :mod:`a2cf_mb.commands.train`)."""
+
+    task: str = "stand"  # task name from rl.registry.TASKS (see list-tasks) [-]
+    mode: str = "a2cf"  # baseline | a2cf | no-pi | no-id | no-rm [-]
+    iterations: int = 100  # total learning iterations of the run (a resume continues up to it) [-]
+    num_steps_per_env: int = 24  # control steps per env per iteration (rollout length) [-]
+    out: str = "runs"  # parent folder of new run folders [-]
+    run_name: str = ""  # run folder name; empty: <task>_<mode>_<UTC time> [-]
+    resume: str = ""  # run folder to continue from its last checkpoint; empty: new run [-]
+    save_interval: int = (
+        50  # iterations between kept checkpoints model_<it>.pt (last.pt: every iteration) [-]
+    )
+    random_mask_prob: float = (
+        DEFAULT_RANDOM_MASK_PROB  # zeta, probability of dropping a wrench component [-]
+    )
+    device: str = "cpu"  # torch device of the learner [-]
+    export_onnx: bool = True  # export the motion policy to ONNX at the end [-]
+    random_episode_start: bool = True  # random initial episode counters (spread time-outs) [-]
+    env: EnvConfig = field(default_factory=EnvConfig)  # env size, threads, seed, switches
+    ppo: PPOConfig = field(default_factory=PPOConfig)  # PPO hyper-parameters
+    model: ModelConfig = field(default_factory=ModelConfig)  # network sizes and VAE weights
+    curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)  # Algorithm 1
+    task_overrides: dict[str, Any] = field(
+        default_factory=dict
+    )  # dotted task-field changes, see rl.task_overrides
+
+    def __post_init__(self) -> None:
+        """Check values a user could get wrong."""
+        get_mode(self.mode)
+        for name in ("iterations", "num_steps_per_env", "save_interval"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"train config '{name}' must be > 0, got {getattr(self, name)}")
+        if not 0.0 <= self.random_mask_prob < 1.0:
+            raise ValueError(f"random_mask_prob must be in [0, 1), got {self.random_mask_prob}")
+        batch = self.env.num_envs * self.num_steps_per_env
+        if batch < self.ppo.num_mini_batches:
+            raise ValueError(
+                f"env.num_envs * num_steps_per_env = {batch} is smaller than "
+                f"ppo.num_mini_batches = {self.ppo.num_mini_batches}"
+            )
+
+    @property
+    def seed(self) -> int:
+        """The run's seed (torch, numpy, random and the env): ``env.seed``."""
+        return self.env.seed
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready nested dictionary."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`to_dict` (lists back to tuples; unknown keys are an error)."""
+        return _build(cls, data)
+
+
+def _build(kind: type, values: dict[str, Any]) -> Any:
+    """A dataclass from a JSON dictionary, recursing into nested dataclass fields."""
+    if not isinstance(values, dict):
+        raise ValueError(f"{kind.__name__} must be a JSON object, got {type(values).__name__}")
+    hints = typing.get_type_hints(kind)
+    names = {f.name for f in dataclasses.fields(kind)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ValueError(f"{kind.__name__} has no field {unknown}")
+    kwargs: dict[str, Any] = {}
+    for name, value in values.items():
+        hint = hints[name]
+        if dataclasses.is_dataclass(hint):
+            value = _build(hint, value)
+        elif typing.get_origin(hint) is tuple and isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return kind(**kwargs)

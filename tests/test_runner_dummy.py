@@ -1,0 +1,155 @@
+"""The runner, checkpoints and the in-env curriculum on a cheap dummy env (rsl_rl's test style):
+no physics, so every plumbing rule is checked in a fraction of a second."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any
+
+import torch
+from rsl_rl.env import VecEnv
+from tensordict import TensorDict
+
+from rl.agents.modes import get_mode
+from rl.curriculum import AssistCurriculum, CurriculumEvent
+from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, A2CFRunner, rsl_rl_config
+from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+
+P, H, PRIV, N, STEPS = 5, 3, 4, 8, 6
+ETA0 = torch.tensor([[20.0, 20.0, 20.0, 5.0, 5.0, 5.0]])
+
+
+class DummyAssistEnv(VecEnv):
+    """Observation groups of the A2CF contract, reward = -|motion action|^2, episodes of 10 steps;
+    the applied wrench is eta * tanh(raw) as in the real env, and Algorithm 1 runs inside."""
+
+    def __init__(self, seed: int = 0) -> None:
+        self.num_envs, self.num_actions, self.max_episode_length = N, 29 + 6, 10
+        self.device, self.cfg = "cpu", {"dummy": True}
+        self.generator = torch.Generator().manual_seed(seed)
+        self.episode_length_buf = torch.zeros(N, dtype=torch.long)
+        self.bound = ETA0.clone()
+        self.curriculum_event: CurriculumEvent | None = None
+        self._obs = self._observe()
+
+    def _observe(self) -> TensorDict:
+        policy = torch.randn(N, P, generator=self.generator)
+        return TensorDict(
+            {
+                "policy": policy,
+                "history": policy.repeat(1, H),
+                "privileged": torch.randn(N, PRIV, generator=self.generator),
+                "critic": torch.randn(N, P + PRIV, generator=self.generator),
+                "base_lin_vel": torch.zeros(N, 3),
+                "policy_clean": policy,
+            },
+            batch_size=[N],
+        )
+
+    def attach_curriculum(self, event: CurriculumEvent) -> None:
+        self.curriculum_event = event
+        self.bound = event.curriculum.eta.clone()
+
+    def get_observations(self) -> TensorDict:
+        return self._obs
+
+    def step(self, actions: torch.Tensor):
+        wrench = self.bound * torch.tanh(actions[:, 29:])
+        reward = -actions[:, :29].square().mean(dim=-1)
+        self.episode_length_buf += 1
+        time_outs = self.episode_length_buf >= self.max_episode_length
+        self.episode_length_buf[time_outs] = 0
+        self._obs = self._observe()
+        log: dict[str, float] = {"Train/mean_step_reward": float(reward.mean())}
+        assist = {"applied_wrench": wrench, "phase": torch.zeros(N, dtype=torch.long)}
+        if self.curriculum_event is not None:
+            row = self.curriculum_event.on_step(assist, skill_progress=0.5)
+            if row is not None:
+                self.bound = self.curriculum_event.curriculum.eta.clone()
+                log["Curriculum/applied_force_n"] = row["applied_force_n"]
+        return self._obs, reward, time_outs, {"time_outs": time_outs, "log": log}
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "generator": self.generator.get_state(),
+            "episode_length_buf": self.episode_length_buf.clone(),
+            "obs": self._obs.clone(),
+            "event": self.curriculum_event.state_dict(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.generator.set_state(state["generator"])
+        self.episode_length_buf = state["episode_length_buf"].clone()
+        self._obs = state["obs"].clone()
+        self.curriculum_event.load_state_dict(state["event"])
+        self.bound = self.curriculum_event.curriculum.eta.clone()
+
+
+CFG = TrainConfig(
+    num_steps_per_env=STEPS,
+    ppo=PPOConfig(num_learning_epochs=1, num_mini_batches=2, assist_init_noise_std=0.05),
+    model=ModelConfig(motion_hidden_dims=(8,), assist_hidden_dims=(8,), critic_hidden_dims=(8,),
+                      encoder_hidden_dims=(8,), latent_dim=2),
+)  # fmt: skip
+
+
+def make_runner(run_dir, total: int, keep: int = 2) -> tuple[DummyAssistEnv, A2CFRunner]:
+    torch.manual_seed(0)
+    env = DummyAssistEnv()
+    env.attach_curriculum(CurriculumEvent(AssistCurriculum(ETA0), STEPS))
+    runner = A2CFRunner(env, rsl_rl_config(CFG, get_mode("a2cf")), run_dir, get_mode("a2cf"),
+                        total_iterations=total, keep_interval=keep)  # fmt: skip
+    return env, runner
+
+
+def test_rsl_rl_loop_drives_the_curriculum_once_per_iteration(tmp_path) -> None:
+    env, runner = make_runner(tmp_path, total=3)
+    runner.learn(3)
+    log = [json.loads(line) for line in (tmp_path / CURRICULUM_LOG).read_text().splitlines()]
+    assert [row["iteration"] for row in log] == [0, 1, 2]
+    # a near-silent head applies far less than half the bound: each update shrinks it by 0.8
+    for k, row in enumerate(log, start=1):
+        torch.testing.assert_close(torch.tensor(row["eta"]), ETA0 * 0.8**k)
+    torch.testing.assert_close(env.bound, ETA0 * 0.8**3)
+    assert [r["iteration"] for r in runner.history] == [0, 1, 2]
+    assert all(r["applied_force_n"] > 0 for r in runner.history)
+    files = sorted(p.name for p in (tmp_path / CHECKPOINT_DIR).iterdir())
+    assert files == ["last.pt", "model_2.pt", "model_3.pt"]  # every 2nd and the last one
+    state = torch.load(tmp_path / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    assert state["completed_iterations"] == 3 and state["env"]["event"]["iteration"] == 3
+
+
+def test_checkpoint_resume_matches_the_uninterrupted_loop(tmp_path) -> None:
+    _, whole = make_runner(tmp_path / "whole", total=4)
+    whole.learn(4)
+    _, first = make_runner(tmp_path / "part", total=4)
+    first.learn(2)
+    env, resumed = make_runner(tmp_path / "part", total=4)
+    resumed.load_checkpoint(tmp_path / "part" / CHECKPOINT_DIR / LAST_CHECKPOINT)
+    assert resumed.completed_iterations == 2 and env.curriculum_event.iteration == 2
+    resumed.learn(2)
+    keys = ("mean_step_reward", "applied_force_n", "losses", "eta_norm")
+    assert [{k: r[k] for k in keys} for r in whole.history] == [
+        {k: r[k] for k in keys} for r in resumed.history
+    ]
+    a = torch.load(tmp_path / "whole" / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    b = torch.load(tmp_path / "part" / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    for name, value in a["actor_state_dict"].items():
+        assert torch.equal(value, b["actor_state_dict"][name]), name
+    same_log = (tmp_path / "whole" / CURRICULUM_LOG).read_text()
+    assert same_log == (tmp_path / "part" / CURRICULUM_LOG).read_text()
+
+
+def test_old_checkpoints_are_refused_with_a_clear_message(tmp_path) -> None:
+    import pytest
+
+    _, runner = make_runner(tmp_path, total=1)
+    runner.learn(1)
+    path = tmp_path / CHECKPOINT_DIR / LAST_CHECKPOINT
+    state = torch.load(path, weights_only=False)
+    state.pop("format")
+    torch.save(state, path)
+    with pytest.raises(ValueError, match="older layout"):
+        make_runner(tmp_path, total=1)[1].load_checkpoint(path)
+    assert dataclasses.asdict(CFG)["num_steps_per_env"] == STEPS
