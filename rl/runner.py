@@ -26,6 +26,7 @@ import dataclasses
 import io
 import json
 import random
+import sys
 import time
 from collections import deque
 from dataclasses import asdict, dataclass
@@ -328,6 +329,43 @@ def load_run_config(run_dir: str | Path) -> TrainConfig:
         ) from err
 
 
+def _readable(path: Path) -> bool:
+    try:
+        state = torch.load(path, weights_only=False, map_location="cpu")
+    except Exception:  # any unreadable file: truncated zip, foreign pickle, empty
+        return False
+    return isinstance(state, dict) and "completed_iterations" in state
+
+
+def resumable_checkpoint(run_dir: Path) -> Path | None:
+    """The checkpoint a resume continues from: ``last.pt``, or when it cannot be read (a disk
+    fault: it is written atomically) the newest readable ``model_<k>.pt``, with a warning;
+    None when the run has no checkpoint yet. Unreadable checkpoints only: a clear error."""
+    folder = run_dir / CHECKPOINT_DIR
+    last = folder / LAST_CHECKPOINT
+    kept = sorted(
+        folder.glob("model_*.pt"),
+        key=lambda p: int(p.stem.split("_")[1]) if p.stem.split("_")[1].isdigit() else -1,
+        reverse=True,
+    )
+    if not last.exists() and not kept:
+        return None
+    if last.exists() and _readable(last):
+        return last
+    for candidate in kept:
+        if _readable(candidate):
+            print(
+                f"a2cf-mb train: warning: {last} cannot be read; resuming from {candidate.name}, "
+                "the newest readable checkpoint (later iterations are redone)",
+                file=sys.stderr,
+            )
+            return candidate
+    raise ValueError(
+        f"no readable checkpoint in {folder} ({LAST_CHECKPOINT} and model_<k>.pt are damaged): "
+        "this run cannot be resumed; start a new run"
+    )
+
+
 def _new_run_dir(cfg: TrainConfig) -> Path:
     name = cfg.run_name or f"{cfg.task}_{cfg.mode}_{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
     run_dir = Path(cfg.out) / name
@@ -374,11 +412,20 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
         run_dir = Path(cfg.resume)
         saved = load_run_config(run_dir)
         cfg = dataclasses.replace(saved, iterations=cfg.iterations, resume=cfg.resume)
-        checkpoint = run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT
-        if not checkpoint.is_file():
-            raise FileNotFoundError(
-                f"no checkpoint at {checkpoint}: nothing to resume in '{run_dir}'"
+        checkpoint = resumable_checkpoint(run_dir)
+        if checkpoint is None:
+            # Killed before its first checkpoint: start over from the saved config (the same
+            # seed gives the same run); the lost iterations' logs go.
+            print(
+                f"a2cf-mb train: warning: {run_dir} has no checkpoint yet (stopped during its first "
+                "iteration); starting it again from iteration 0 with its saved config",
+                file=sys.stderr,
             )
+            for stale in [*run_dir.glob("events.out.tfevents*"), run_dir / CURRICULUM_LOG]:
+                stale.unlink(missing_ok=True)
+            saved_eta0 = json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0")
+            if eta0 is None and saved_eta0 is not None:
+                eta0 = torch.tensor(saved_eta0)
     else:
         run_dir = _new_run_dir(cfg)
         checkpoint = None
@@ -391,7 +438,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
     runner.add_git_repo_to_log(str(Path(__file__).resolve().parent))
     if checkpoint is not None:
         runner.load_checkpoint(checkpoint)
-    else:
+    if not (run_dir / CONFIG_FILE).is_file():
         event = env.curriculum_event
         atomic_write_json(
             run_dir / CONFIG_FILE,

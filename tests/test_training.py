@@ -256,3 +256,41 @@ def test_cli_task_and_env_flags_reach_the_run(tmp_path) -> None:
     assert weights["upright"] == 2.0 and weights["alive"] == 1.0
     bad = argv[:-3] + ["--task-term-param", "tilted.tilt=1", "--run-name", "bad"]
     assert cli_main(bad) == 2 and not (tmp_path / "bad").exists()
+
+
+def test_eval_refuses_bad_sizes_and_keeps_eval_json(tmp_path, capsys) -> None:
+    run = train(tiny_config(tmp_path, "baseline", iterations=1), verbose=False).run_dir
+    (run / "eval.json").write_text('{"survival_fraction": 0.52}')
+    assert cli_main(["eval", str(run), "--num-steps", "-5"]) == 2
+    assert "num_steps must be >= 0" in capsys.readouterr().err
+    assert json.loads((run / "eval.json").read_text()) == {"survival_fraction": 0.52}
+
+
+def test_half_created_and_damaged_runs_resume_or_say_what_to_do(tmp_path, capsys) -> None:
+    """A run killed before its first checkpoint restarts from iteration 0 (same seed, same run);
+    an unreadable last.pt falls back to the newest readable model_<k>.pt."""
+    cfg = tiny_config(tmp_path, "a2cf", iterations=2, save_interval=1)
+    whole = train(dataclasses.replace(cfg, run_name="whole"), verbose=False)
+    run = train(dataclasses.replace(cfg, run_name="half"), verbose=False).run_dir
+    for path in (run / CHECKPOINT_DIR).iterdir():
+        path.unlink()  # as if killed during iteration 0
+    again = train(TrainConfig(resume=str(run), iterations=2), verbose=False)
+    assert "no checkpoint yet" in capsys.readouterr().err
+    assert read_jsonl(run / CURRICULUM_LOG) == read_jsonl(whole.run_dir / CURRICULUM_LOG)
+    assert [r["mean_step_reward"] for r in again.metrics["iterations"]] == [
+        r["mean_step_reward"] for r in whole.metrics["iterations"]
+    ]
+    # a new run into the same folder is refused with what to do, and loses nothing
+    assert cli_main(["train", "--out", str(tmp_path), "--run-name", "half"]) == 2
+    assert "use --resume" in capsys.readouterr().err
+    (run / CHECKPOINT_DIR / LAST_CHECKPOINT).write_bytes(b"PK\x03\x04 truncated")
+    resumed = train(TrainConfig(resume=str(run), iterations=3), verbose=False)
+    assert "resuming from model_2.pt" in capsys.readouterr().err
+    assert resumed.iterations_done == 3
+    for path in (run / CHECKPOINT_DIR).iterdir():
+        path.write_bytes(b"")
+    assert cli_main(["train", "--resume", str(run), "--iterations", "4"]) == 2
+    assert "no readable checkpoint" in capsys.readouterr().err
+    (run / "config.json").write_text("{")
+    assert cli_main(["train", "--resume", str(run)]) == 2
+    assert "config.json is not a valid run config" in capsys.readouterr().err
