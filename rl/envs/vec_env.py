@@ -260,10 +260,14 @@ class G1VecEnv(VecEnv):
         self.last_action = self.action.clone()
         if done_ids.numel():
             self._reset_envs(done_ids)
-            state = self._read_state()
+            state = self._read_state(terminated=failed)
         self.phase = self.phase_machine.update(state)
         self.command = self.command_gen.compute(state, self.step_dt_s)
-        self.env_state = self._read_state(terminated=failed)
+        # The state the next observations show: this one with the new phase and command.
+        state.phase, state.command = self.phase, self.command
+        state.assist_bound = self.assist.bound[self.phase]
+        state.action, state.last_action = self.action, self.last_action
+        self.env_state = state
         self._obs = self._observations(reset_ids=done_ids)
 
         for term, value in zip(self.task.terminations, per_term, strict=True):
@@ -540,10 +544,18 @@ class G1VecEnv(VecEnv):
             ),
         )
 
-    def _group(self, name: str, group: ObsGroup, s: EnvState) -> tuple[torch.Tensor, torch.Tensor]:
+    def _group(
+        self, name: str, group: ObsGroup, s: EnvState, cache: dict[int, torch.Tensor]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(clean, noisy) values of a group: its terms (scaled) concatenated, and the same plus
-        each term's uniform noise when the group is noisy (else the clean tensor itself)."""
-        parts = [term(s) * term.scale if term.scale != 1.0 else term(s) for term in group.terms]
+        each term's uniform noise when the group is noisy (else the clean tensor itself).
+        ``cache`` holds the terms already evaluated for this state (groups share terms)."""
+        parts = []
+        for term in group.terms:
+            if id(term) not in cache:
+                value = term(s)
+                cache[id(term)] = value * term.scale if term.scale != 1.0 else value
+            parts.append(cache[id(term)])
         clean = torch.cat(parts, dim=-1)
         if not group.noisy:
             return clean, clean
@@ -583,7 +595,8 @@ class G1VecEnv(VecEnv):
         """Build all observation groups from :attr:`env_state`; fill the history of reset envs."""
         s = self.env_state
         groups = self.task.observations
-        clean, noisy = self._group("policy", groups.policy, s)
+        cache: dict[int, torch.Tensor] = {}
+        clean, noisy = self._group("policy", groups.policy, s, cache)
         if self.history is None:
             self.history = HistoryBuffer(self.num_envs, self.cfg.history_length, clean.shape[1])
         self.history.push(noisy)
@@ -593,8 +606,8 @@ class G1VecEnv(VecEnv):
             {
                 "policy": noisy,
                 "history": self.history.flat().clone(),
-                "privileged": self._group("privileged", groups.privileged, s)[1],
-                "critic": self._group("critic", groups.critic, s)[1],
+                "privileged": self._group("privileged", groups.privileged, s, cache)[1],
+                "critic": self._group("critic", groups.critic, s, cache)[1],
                 "base_lin_vel": s.base_lin_vel_b.clone(),
                 "policy_clean": clean,
             },
