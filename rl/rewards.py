@@ -64,6 +64,53 @@ def feet_contact(s: EnvState, threshold_n: float = 1.0) -> torch.Tensor:
     return (force > threshold_n).to(force.dtype).mean(-1)
 
 
+def joint_acc_l2(s: EnvState) -> torch.Tensor:
+    """Sum of squared joint accelerations over the last policy step [rad^2/s^4]."""
+    return s.joint_acc_rps2.square().sum(-1)
+
+
+def joint_pos_limits(s: EnvState, soft_ratio: float = 1.0) -> torch.Tensor:
+    """Sum over joints of how far each is beyond its (soft) position limits [rad].
+
+    ``soft_ratio`` < 1 shrinks the range about its middle (0.9: the outer 5 % on each side count).
+    """
+    low, high = s.joint_pos_limits_rad[:, 0], s.joint_pos_limits_rad[:, 1]
+    mid, half = (low + high) / 2, (high - low) / 2 * soft_ratio
+    q = s.joint_pos_rad
+    return ((mid - half - q).clamp_min(0) + (q - mid - half).clamp_min(0)).sum(-1)
+
+
+def orientation_l2(s: EnvState) -> torch.Tensor:
+    """Squared horizontal part of the gravity direction in the pelvis frame (0 upright) [-]."""
+    return s.projected_gravity_b[:, :2].square().sum(-1)
+
+
+def ang_vel_z_l2(s: EnvState) -> torch.Tensor:
+    """Squared yaw rate of the pelvis [rad^2/s^2]."""
+    return s.base_ang_vel_b[:, 2].square()
+
+
+def feet_slide(s: EnvState, threshold_n: float = 1.0) -> torch.Tensor:
+    """Horizontal speed of the feet that are on the ground, summed over the two feet [m/s]."""
+    on_ground = (s.foot_contact_force_n > threshold_n).to(s.foot_vel_w.dtype)
+    return (s.foot_vel_w[..., :2].norm(dim=-1) * on_ground).sum(-1)
+
+
+def link_ground_contact(s: EnvState, bodies: tuple[str, ...] = ()) -> torch.Tensor:
+    """Number of the named links (all non-foot links when empty) touching the ground [-]."""
+    return _contacts(s, bodies).sum(-1).to(torch.float32)
+
+
+def _contacts(s: EnvState, bodies: tuple[str, ...]) -> torch.Tensor:
+    if not bodies:
+        return s.body_ground_contact
+    names = s.contact_body_names
+    missing = [b for b in bodies if b not in names]
+    if missing:
+        raise ValueError(f"no ground-contact sensor for {missing}; bodies with one: {names}")
+    return s.body_ground_contact[:, [names.index(b) for b in bodies]]
+
+
 def termination(s: EnvState) -> torch.Tensor:
     """1 for envs that failed this step (not time-outs), else 0; weight it negatively."""
     return s.terminated.to(torch.float32)

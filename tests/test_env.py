@@ -388,3 +388,34 @@ def test_bench_env_smoke():
     assert figures["env_steps_per_s"] > 0 and figures["physics_env_steps_per_s"] > 0
     assert figures["env_over_physics"] > 0
     assert "env/physics" in format_results(results)
+
+
+def test_link_ground_contacts_and_foot_timers_from_the_physics():
+    """A robot dropped onto its knees reports knee-ground contacts; a lifted robot's feet count
+    air time and report the touch-down."""
+    from rl import terminations
+
+    kneel = variant(quiet(STAND), terminations=(
+        TerminationTerm("link_on_ground", terminations.link_on_ground,
+                        params={"bodies": ("left_knee_link", "right_knee_link")}),
+    ))  # fmt: skip
+    env = make_env(kneel, 2, num_threads=1)
+    z = env.layout.qpos.start + 2
+    env.state[1, z] = 0.3  # knees below the floor level of the standing robot
+    _, _, dones, extras = env.step(zero_actions(env))
+    assert extras["log"]["Termination/link_on_ground"] == 0.5 and dones.tolist() == [False, True]
+    env = quiet_env(1)
+    env.state[0, z] += 0.15
+    env._refresh_sensors(torch.arange(1))
+    air = []
+    for _ in range(20):
+        env.step(zero_actions(env))
+        air.append(env.env_state.foot_air_time_s[0].clone())
+        if env.env_state.foot_first_contact.any():
+            break
+    assert env.env_state.foot_first_contact.any(), "the feet never touched down"
+    assert air[-2].min() > 0.1  # fell about 0.15 m: ~0.17 s in the air
+    landed = env.env_state.foot_first_contact[0]
+    torch.testing.assert_close(
+        env.env_state.foot_last_air_time_s[0][landed], air[-2][landed] + 0.02
+    )

@@ -31,6 +31,11 @@ def random_state() -> EnvState:
         command=batch(0), phase=torch.zeros(N, dtype=torch.long), num_phases=1,
         randomization_params=batch(5), default_joint_pos_rad=torch.zeros(29),
         effort_limit_nm=torch.ones(29), weight_n=327.0, terminated=batch(1)[:, 0] > 0,
+        step_dt_s=0.02, joint_acc_rps2=batch(29) * 50,
+        joint_pos_limits_rad=torch.tensor([[-1.0, 1.0]]).expand(29, 2),
+        foot_vel_w=batch(2, 3), foot_air_time_s=batch(2).abs(), foot_contact_time_s=batch(2).abs(),
+        foot_last_air_time_s=batch(2).abs(), foot_first_contact=batch(2) > 0,
+        body_ground_contact=batch(3) > 0, contact_body_names=("pelvis", "left_knee_link", "torso_link"),
     )  # fmt: skip
 
 
@@ -46,6 +51,12 @@ CASES = {
     "base_ang_vel_xy_l2": (rewards.base_ang_vel_xy_l2, {}),
     "feet_contact": (rewards.feet_contact, {"threshold_n": 1.0}),
     "termination": (rewards.termination, {}),
+    "joint_acc_l2": (rewards.joint_acc_l2, {}),
+    "joint_pos_limits": (rewards.joint_pos_limits, {"soft_ratio": 0.9}),
+    "orientation_l2": (rewards.orientation_l2, {}),
+    "ang_vel_z_l2": (rewards.ang_vel_z_l2, {}),
+    "feet_slide": (rewards.feet_slide, {}),
+    "link_ground_contact": (rewards.link_ground_contact, {"bodies": ("left_knee_link",)}),
 }
 
 
@@ -73,6 +84,25 @@ def test_term_values():
     stand = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
     state.joint_pos_rad, state.default_joint_pos_rad = stand.expand(2, -1), stand
     assert rewards.joint_deviation_l2(state).abs().max() == 0.0
+
+
+def test_new_term_values():
+    state = random_state()
+    state.joint_pos_rad = torch.zeros(N, 29)
+    state.joint_pos_rad[0, 3] = 1.5  # 0.5 rad beyond +1
+    state.joint_pos_rad[1, 4] = -0.95  # inside [-1, 1], beyond the 0.9 soft range by 0.05
+    assert rewards.joint_pos_limits(state)[:2].tolist() == pytest.approx([0.5, 0.0])
+    assert rewards.joint_pos_limits(state, soft_ratio=0.9)[:2].tolist() == pytest.approx(
+        [0.6, 0.05]
+    )
+    state.foot_contact_force_n = torch.tensor([[10.0, 0.0]]).expand(N, 2)
+    state.foot_vel_w = torch.tensor([[[3.0, 4.0, 9.0], [1.0, 0.0, 0.0]]]).expand(N, 2, 3)
+    assert rewards.feet_slide(state)[0] == pytest.approx(5.0)  # only the loaded foot, xy only
+    state.body_ground_contact = torch.tensor([[True, False, True]]).expand(N, 3)
+    assert rewards.link_ground_contact(state)[0] == 2.0
+    assert rewards.link_ground_contact(state, bodies=("left_knee_link",))[0] == 0.0
+    with pytest.raises(ValueError, match="no ground-contact sensor"):
+        rewards.link_ground_contact(state, bodies=("tail",))
 
 
 def test_less_assist_reward():

@@ -29,6 +29,23 @@ from robots.mujoco_model import STAND_KEYFRAME, MujocoModelConfig, build_mujoco_
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CONTROL_SPEC = mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED
 TORQUE_SENSOR_PREFIX = "torque_"
+CONTACT_SENSOR_PREFIX = "ground_contact_"
+FOOT_BODIES = ("left_ankle_pitch_link", "left_ankle_roll_link", "right_ankle_pitch_link",
+               "right_ankle_roll_link")  # fmt: skip
+"""Bodies whose ground contact is the soles' job (not reported as link contacts)."""
+CONTACT_FOUND = 1
+"""mjSENS_CONTACT data spec: the number of matching contacts ("found")."""
+
+
+def contact_bodies(model: mujoco.MjModel) -> tuple[str, ...]:
+    """Bodies with a colliding geom other than the feet: their ground contacts are reported."""
+    names = []
+    for body in range(1, model.nbody):
+        name = model.body(body).name
+        geoms = np.flatnonzero(model.geom_bodyid == body)
+        if name not in FOOT_BODIES and any(model.geom_contype[g] for g in geoms):
+            names.append(name)
+    return tuple(names)
 
 
 def build_physics_model(
@@ -62,6 +79,23 @@ def build_physics_model(
             objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
             objname=joint.name,
         )
+    for sole in g1.SOLE_FRAMES:
+        spec.add_sensor(
+            name=f"{sole}_vel",
+            type=mujoco.mjtSensor.mjSENS_FRAMELINVEL,
+            objtype=mujoco.mjtObj.mjOBJ_SITE,
+            objname=sole,
+        )
+    # Link-ground contacts (knees, hands, torso, ...): one "found" count per body. The link
+    # primitives collide with the ground only, so any contact of theirs is a ground contact.
+    for body in contact_bodies(spec.compile()):
+        sensor = spec.add_sensor(
+            name=CONTACT_SENSOR_PREFIX + body,
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            objname=body,
+        )
+        sensor.intprm[:3] = [CONTACT_FOUND, 0, 1]
     return spec.compile()
 
 
@@ -97,7 +131,11 @@ class ModelLayout:
     pelvis_body: int  # MuJoCo body id of the pelvis
     foot_touch: tuple[int, int]  # sensor columns of left / right sole normal force [N]
     foot_pos: tuple[slice, slice]  # sensor columns of left / right sole position p_w [m]
+    foot_vel: tuple[slice, slice]  # sensor columns of left / right sole linear velocity v_w [m/s]
     torque: slice  # sensor columns of the 29 actuator forces [Nm]
+    contact: np.ndarray  # sensor columns of the link-ground contact counts, one per contact body
+    contact_bodies: tuple[str, ...]  # names of the bodies of ``contact``
+    joint_range_rad: np.ndarray  # (29, 2) position limits of the actuated joints [rad]
     stand_state: np.ndarray  # FULLPHYSICS row of the standing keyframe, shape (nstate,)
 
 
@@ -111,6 +149,11 @@ def model_layout(model: mujoco.MjModel) -> ModelLayout:
     torque_sensors = [_sensor_slice(model, TORQUE_SENSOR_PREFIX + j.name) for j in g1.JOINTS]
     if any(s.start != torque_sensors[0].start + i for i, s in enumerate(torque_sensors)):
         raise RuntimeError("Torque sensors are not contiguous; rebuild with build_physics_model().")
+    bodies = tuple(
+        model.sensor(i).name[len(CONTACT_SENSOR_PREFIX) :]
+        for i in range(model.nsensor)
+        if model.sensor(i).name.startswith(CONTACT_SENSOR_PREFIX)
+    )
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEYFRAME).id)
     stand = np.empty(nstate)
@@ -127,6 +170,12 @@ def model_layout(model: mujoco.MjModel) -> ModelLayout:
         pelvis_body=pelvis,
         foot_touch=tuple(_sensor_slice(model, f"{s}_touch").start for s in g1.SOLE_FRAMES),
         foot_pos=tuple(_sensor_slice(model, f"{s}_pos") for s in g1.SOLE_FRAMES),
+        foot_vel=tuple(_sensor_slice(model, f"{s}_vel") for s in g1.SOLE_FRAMES),
         torque=slice(torque_sensors[0].start, torque_sensors[-1].stop),
+        contact=np.array(
+            [_sensor_slice(model, CONTACT_SENSOR_PREFIX + b).start for b in bodies], dtype=int
+        ),
+        contact_bodies=bodies,
+        joint_range_rad=np.array([model.joint(j.name).range for j in g1.JOINTS]),
         stand_state=stand,
     )

@@ -38,6 +38,10 @@ def quat_multiply(a_wxyz: torch.Tensor, b_wxyz: torch.Tensor) -> torch.Tensor:
     )
 
 
+FOOT_CONTACT_THRESHOLD_N = 1.0
+"""Sole normal force above which a foot counts as on the ground (air/contact timers) [N]."""
+
+
 @dataclass
 class EnvState:
     """Robot and env state after a policy step, float32 tensors with a leading env axis N.
@@ -71,3 +75,13 @@ class EnvState:
     effort_limit_nm: torch.Tensor  # (29,) actuator effort limits [Nm]
     weight_n: float  # nominal robot weight m g [N]
     terminated: torch.Tensor  # (N,) bool, failure this step (all False before terminations run)
+    step_dt_s: float  # policy step [s]
+    joint_acc_rps2: torch.Tensor  # (N, 29) joint acceleration over the last policy step [rad/s^2]
+    joint_pos_limits_rad: torch.Tensor  # (29, 2) lower / upper joint position limits [rad]
+    foot_vel_w: torch.Tensor  # (N, 2, 3) left / right sole centre linear velocity [m/s]
+    foot_air_time_s: torch.Tensor  # (N, 2) time since each foot left the ground (0 in contact) [s]
+    foot_contact_time_s: torch.Tensor  # (N, 2) time since each foot touched down (0 in the air) [s]
+    foot_last_air_time_s: torch.Tensor  # (N, 2) duration of each foot's last swing [s]
+    foot_first_contact: torch.Tensor  # (N, 2) bool, the foot touched down in this step
+    body_ground_contact: torch.Tensor  # (N, B) bool, link b (not a foot) touches the ground
+    contact_body_names: tuple[str, ...]  # (B,) body names of ``body_ground_contact``

@@ -36,7 +36,12 @@ from rl.envs.buffers import HistoryBuffer
 from rl.envs.config import EnvConfig
 from rl.envs.model import CONTROL_SPEC, STATE_SPEC, build_physics_model, model_layout
 from rl.envs.randomization import ModelRandomizer, nominal_params, sample_params
-from rl.envs.state import EnvState, quat_multiply, quat_rotate_inverse
+from rl.envs.state import (
+    FOOT_CONTACT_THRESHOLD_N,
+    EnvState,
+    quat_multiply,
+    quat_rotate_inverse,
+)
 from rl.tasks.config import TaskConfig
 from rl.tasks.terms import ObsGroup
 from robots import g1
@@ -121,11 +126,19 @@ class G1VecEnv(VecEnv):
         self.randomization_params = nominal_params(n, self.model)
         self._push_timer_s = torch.zeros(n)
         self.diverged_total = 0
+        self._last_joint_vel = torch.zeros(n, g1.NUM_JOINTS)
+        self._joint_acc = torch.zeros(n, g1.NUM_JOINTS)
+        self.foot_air_time_s = torch.zeros(n, 2)
+        self.foot_contact_time_s = torch.zeros(n, 2)
+        self.foot_last_air_time_s = torch.zeros(n, 2)
+        self.foot_first_contact = torch.zeros(n, 2, dtype=torch.bool)
+        self._joint_limits = torch.as_tensor(lay.joint_range_rad, dtype=torch.float32)
 
         self.command_gen = task.commands.build(n, self.generator)
         self.command = torch.zeros(n, task.commands.dim)
         self.phase_machine = task.phases.build(n, self.generator)
         self.skill = task.skill.build(self.max_episode_length)
+        self.components = (self.command_gen, self.phase_machine, self.skill)
         self.assist = AssistState(
             task.default_assist_bound(),
             enabled=True,
@@ -242,6 +255,7 @@ class G1VecEnv(VecEnv):
 
         self.episode_length_buf += 1
         self._lived_steps += 1
+        self._update_kinematic_history()
         state = self._read_state()
         per_term = [term(state) for term in self.task.terminations]
         failed = torch.stack(per_term).any(dim=0) if per_term else torch.zeros(n, dtype=torch.bool)
@@ -256,7 +270,9 @@ class G1VecEnv(VecEnv):
 
         done_ids = dones.nonzero().flatten()
         if done_ids.numel():
-            self.skill.on_episodes_end(done_ids, time_outs[done_ids], self._lived_steps[done_ids])
+            self.skill.on_episodes_end(
+                done_ids, time_outs[done_ids], self._lived_steps[done_ids], state
+            )
         self.last_action = self.action.clone()
         if done_ids.numel():
             self._reset_envs(done_ids)
@@ -281,6 +297,8 @@ class G1VecEnv(VecEnv):
         log["Train/mean_step_reward"] = float(reward.mean())
         progress = self.skill.progress()
         log["Episode/skill_progress"] = progress
+        for component in self.components:
+            log.update(component.log())
         assist = {"applied_wrench": wrench, "bound": bound, "phase": applied_phase}
         if self.curriculum_event is not None:
             row = self.curriculum_event.on_step(assist, progress)
@@ -323,6 +341,12 @@ class G1VecEnv(VecEnv):
             "history": self.history.buffer.clone(),
             "obs": self._obs.clone(),
             "diverged_total": self.diverged_total,
+            "last_joint_vel": self._last_joint_vel.clone(),
+            "joint_acc": self._joint_acc.clone(),
+            "foot_timers": torch.stack(
+                [self.foot_air_time_s, self.foot_contact_time_s, self.foot_last_air_time_s]
+            ),
+            "foot_first_contact": self.foot_first_contact.clone(),
             "assist": {
                 "bound": self.assist.bound.clone(),
                 "enabled": self.assist.enabled,
@@ -365,6 +389,11 @@ class G1VecEnv(VecEnv):
         self.history.buffer = state["history"].clone()
         self._obs = state["obs"].clone()
         self.diverged_total = int(state["diverged_total"])
+        self._last_joint_vel = state["last_joint_vel"].clone()
+        self._joint_acc = state["joint_acc"].clone()
+        timers = state["foot_timers"].clone()
+        self.foot_air_time_s, self.foot_contact_time_s, self.foot_last_air_time_s = timers
+        self.foot_first_contact = state["foot_first_contact"].clone()
         assist = state["assist"]
         self.assist.set_bound(assist["bound"])
         self.assist.enabled = bool(assist["enabled"])
@@ -475,6 +504,8 @@ class G1VecEnv(VecEnv):
         rows[:, lay.time] = 0.0
         if init.reset_state is not None:
             init.reset_state(env_ids, rows[:, lay.qpos], rows[:, lay.qvel], gen)  # views: in place
+        for component in self.components:
+            component.reset_state(env_ids, rows[:, lay.qpos], rows[:, lay.qvel], gen)
         self._state_t[env_ids] = rows
 
         if self._per_env_models:
@@ -490,8 +521,30 @@ class G1VecEnv(VecEnv):
         self.last_action[env_ids] = 0.0
         self.applied_wrench[env_ids] = 0.0
         self._push_timer_s[env_ids] = self._sample_push_interval(m)
-        self.command_gen.reset(env_ids)
-        self.phase_machine.reset(env_ids)
+        self._last_joint_vel[env_ids] = self._state_t[env_ids][:, lay.qvel][:, 6:].float()
+        self._joint_acc[env_ids] = 0.0
+        self.foot_air_time_s[env_ids] = 0.0
+        self.foot_contact_time_s[env_ids] = 0.0
+        self.foot_last_air_time_s[env_ids] = 0.0
+        self.foot_first_contact[env_ids] = False
+        for component in self.components:
+            component.reset(env_ids)
+
+    def _update_kinematic_history(self) -> None:
+        """Joint acceleration over the step and the feet's air / contact timers (Isaac Lab's
+        contact-sensor semantics: ``first_contact`` when a foot lands after a swing)."""
+        dt = self.step_dt_s
+        joint_vel = self._state_t[:, self.layout.qvel][:, 6:].float()
+        self._joint_acc = (joint_vel - self._last_joint_vel) / dt
+        self._last_joint_vel = joint_vel
+        lay = self.layout
+        contact = self._sensor_t[:, list(lay.foot_touch)].float() > FOOT_CONTACT_THRESHOLD_N
+        self.foot_first_contact = contact & (self.foot_air_time_s > 0)
+        self.foot_last_air_time_s = torch.where(
+            self.foot_first_contact, self.foot_air_time_s + dt, self.foot_last_air_time_s
+        )
+        self.foot_air_time_s = torch.where(contact, 0.0, self.foot_air_time_s + dt)
+        self.foot_contact_time_s = torch.where(contact, self.foot_contact_time_s + dt, 0.0)
 
     def _refresh_sensors(self, env_ids: torch.Tensor) -> None:
         """Recompute the sensor rows of freshly reset envs (contacts, torques at the stand targets)."""
@@ -513,6 +566,7 @@ class G1VecEnv(VecEnv):
         quat = qpos[:, 3:7]
         lin_vel_w = qvel[:, 0:3]
         foot_pos = torch.stack([sens[:, lay.foot_pos[0]], sens[:, lay.foot_pos[1]]], dim=1)
+        foot_vel = torch.stack([sens[:, lay.foot_vel[0]], sens[:, lay.foot_vel[1]]], dim=1)
         return EnvState(
             base_pos_w=qpos[:, 0:3],
             base_quat_w=quat,
@@ -542,6 +596,16 @@ class G1VecEnv(VecEnv):
                 if terminated is not None
                 else torch.zeros(self.num_envs, dtype=torch.bool)
             ),
+            step_dt_s=self.step_dt_s,
+            joint_acc_rps2=self._joint_acc,
+            joint_pos_limits_rad=self._joint_limits,
+            foot_vel_w=foot_vel,
+            foot_air_time_s=self.foot_air_time_s,
+            foot_contact_time_s=self.foot_contact_time_s,
+            foot_last_air_time_s=self.foot_last_air_time_s,
+            foot_first_contact=self.foot_first_contact,
+            body_ground_contact=sens[:, lay.contact] > 0.5,
+            contact_body_names=lay.contact_bodies,
         )
 
     def _group(

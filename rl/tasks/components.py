@@ -22,6 +22,21 @@ class Component:  # noqa: B024 - a base of optional hooks; subclasses add the ab
     def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
         """Re-initialise the per-env state of ``env_ids`` (M,) (they start a new episode)."""
 
+    def reset_state(  # noqa: B027 - optional hook
+        self,
+        env_ids: torch.Tensor,
+        qpos: torch.Tensor,
+        qvel: torch.Tensor,
+        generator: torch.Generator,
+    ) -> None:
+        """Edit in place the float64 MuJoCo initial state of resetting envs (``qpos`` (M, 36),
+        ``qvel`` (M, 35)), e.g. place a robot on its terrain tile or on a reference frame. Called
+        before :meth:`reset`, after the task's initial-state noise."""
+
+    def log(self) -> dict[str, float]:
+        """Scalars to log this step (e.g. ``Curriculum/terrain_level``); averaged per iteration."""
+        return {}
+
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue exactly after a resume (tensors are cloned)."""
         return {}
@@ -94,12 +109,17 @@ class SkillMeasure(Component, ABC):
 
     @abstractmethod
     def on_episodes_end(
-        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
     ) -> None:
         """Record finished episodes: ``env_ids`` (M,), ``time_outs`` (M,) bool (ended by the time
         limit, not a failure), ``lived_steps`` (M,) long: policy steps since the env's actual
         reset (runners may start episode counters at random values; such shortened episodes time
-        out early without having survived a full episode)."""
+        out early without having survived a full episode); ``state`` is the batch state at the
+        episodes' last step (before their reset), e.g. for the distance walked."""
 
     @abstractmethod
     def progress(self) -> float:
@@ -134,7 +154,11 @@ class SurvivalSkill(SkillMeasure):
         self._count = 0
 
     def on_episodes_end(
-        self, env_ids: torch.Tensor, time_outs: torch.Tensor, lived_steps: torch.Tensor
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
     ) -> None:
         """Push flags; episodes cut short by a time limit before a full episode are skipped."""
         fell = ~time_outs
