@@ -52,6 +52,10 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
 
     Each env's *first* episode is scored: its return (sum of rewards until it ends or the rollout
     stops) and whether it survived (time-out or still running at the end, not a termination).
+    A task with an ``evaluation`` config adds its own metrics (``task_metrics``): its evaluator's
+    ``on_step(env, active, dones, extras)`` runs after every step (``active`` (N,) bool: the env is
+    still in its first episode, before this step) and ``finish(run_dir) -> dict`` at the end (it
+    may write plots into ``run_dir``).
     The result is also written to ``RUN_DIR/eval.json``.
     """
     from rl.export import OnnxMotionPolicy
@@ -84,6 +88,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             return torch_policy(obs["policy"], obs["history"])
 
     num_steps = cfg.num_steps or int(env.max_episode_length)
+    evaluator = env.task.evaluation.build(env) if env.task.evaluation is not None else None
     returns = torch.zeros(cfg.num_envs)
     lengths = torch.zeros(cfg.num_envs)
     active = torch.ones(cfg.num_envs, dtype=torch.bool)
@@ -97,6 +102,8 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             obs, rewards, dones, extras = env.step(torch.cat([actions, zeros], dim=-1))
             if cfg.video and active[0] and not bool(dones[0]):
                 qpos_env0.append(env.state[0, env.layout.qpos].copy())
+            if evaluator is not None:
+                evaluator.on_step(env, active, dones, extras)
             returns += torch.where(active, rewards.float().cpu(), 0.0)
             lengths += active.float()
             done = dones.bool().cpu()
@@ -116,6 +123,8 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         "mean_return": float(returns.mean()),
         "mean_episode_length_steps": float(lengths.mean()),
     }
+    if evaluator is not None:
+        result["task_metrics"] = evaluator.finish(run_dir)
     if cfg.video:
         result["video"] = str(
             _render_qpos(np.asarray(qpos_env0), env.step_dt_s, cfg.video, train_cfg.task)
