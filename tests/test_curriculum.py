@@ -198,3 +198,47 @@ def test_curriculum_event_ignores_steps_while_assistance_is_off() -> None:
     row = event.on_step(_step_extras([0, 0], 50.0), 1.0)
     assert row["visited"] == [False, False] and row["applied_force_n"] == 0.0
     torch.testing.assert_close(curriculum.eta, ETA0)  # switched off: bounds frozen
+
+
+def _distributed_worker(rank: int, world: int, port: int, queue) -> None:
+    import torch.distributed as dist
+
+    dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank,
+                            world_size=world)  # fmt: skip
+    try:
+        event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=1)
+        # Rank 0 sees a tiny wrench in phase 0 only, rank 1 a large one in phase 0 and phase 1.
+        force = [1.0, 200.0][rank]
+        phases = [[0, 0], [0, 1]][rank]
+        row = event.on_step(_step_extras(phases, force), skill_progress=0.2 * (rank + 1))
+        queue.put((rank, row))
+    finally:
+        dist.destroy_process_group()
+
+
+def test_curriculum_statistics_are_reduced_across_processes() -> None:
+    """Under torchrun every process moves its bounds identically, from the pooled statistics."""
+    import socket
+
+    import torch.multiprocessing as mp
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=_distributed_worker, args=(r, 2, port, queue)) for r in (0, 1)]
+    for p in procs:
+        p.start()
+    rows = dict(queue.get(timeout=60) for _ in procs)
+    for p in procs:
+        p.join(timeout=60)
+        assert p.exitcode == 0
+    assert rows[0]["eta"] == rows[1]["eta"]
+    # pooled phase 0: samples 1, 1, 200 -> mean 67.3; phase 1: 200 (one sample)
+    pooled = torch.tensor(rows[0]["applied_norm"])
+    torch.testing.assert_close(pooled, torch.tensor([202.0 / 3, 200.0]))
+    assert rows[0]["skill_progress"] == pytest.approx(0.3)
+    # single-process view of rank 0 alone would have shrunk phase 0; pooled, it is inside the band
+    torch.testing.assert_close(torch.tensor(rows[0]["eta"][0]), ETA0[0])
+    torch.testing.assert_close(torch.tensor(rows[0]["eta"][1]), ETA0[1] * 1.2)
