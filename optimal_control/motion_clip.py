@@ -9,10 +9,14 @@ the public G1 retargeted LAFAN1 clips):
 * NPZ with either ``qpos`` (T, 36) in the CSV layout, or ``root_pos`` (T, 3), ``root_quat_xyzw``
   (T, 4) and ``joint_pos`` (T, 29); an optional scalar ``fps`` overrides the configured rate.
 
-Pipeline (:func:`load_motion_clip`): validate -> normalise quaternions -> resample to the target
-rate (cubic splines for positions and joints, spherical linear interpolation for the base
-orientation) -> velocities and accelerations (:func:`differentiate`) -> contacts
-(:func:`infer_contacts`) -> a :class:`~optimal_control.reference.Reference` with one phase.
+Pipeline (:func:`load_motion_clip_with_report`): validate -> normalise quaternions -> remove
+single-frame spikes (:func:`despike`) -> resample to the target rate (cubic splines for positions
+and joints, spherical linear interpolation for the base orientation) -> shift so the robust ground
+estimate (:func:`estimate_ground_m`, a low percentile of the per-frame lowest sole) is z = 0 ->
+velocities and accelerations (:func:`differentiate`) -> contacts with hysteresis and a support
+fallback (:func:`infer_contacts`) -> a :class:`~optimal_control.reference.Reference` with one
+phase, and a plausibility report (:func:`clip_plausibility`: share of frames with no sole down,
+largest base jump, ground estimate); too many flying frames is an error, some a warning.
 
 **Differentiation** (:func:`differentiate`): central differences on the configuration manifold,
 ``v_t = pin.difference(q_{t-1}, q_{t+1}) / (2 dt)`` (one-sided at the ends), then a
@@ -24,6 +28,7 @@ filter may run on them directly.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,14 +55,24 @@ class ClipConfig:
 
     source_fps: float = 30.0  # frame rate of a CSV clip (NPZ 'fps' overrides) [1/s]
     target_fps: float = 50.0  # frame rate of the reference [1/s]
-    smoothing_window_s: float = 0.1  # Savitzky-Golay window for v and a [s]
+    smoothing_window_s: float = 0.2  # Savitzky-Golay window for v and a [s]
     polyorder: int = 3  # Savitzky-Golay polynomial order [-]
     min_frames: int = 10  # fewest frames a clip may have [-]
     joint_limit_tolerance_rad: float = 0.1  # allowed excursion beyond the URDF limits [rad]
     quat_norm_tolerance: float = 0.05  # allowed | |quat| - 1 | before the clip is rejected [-]
-    contact_height_m: float = 0.03  # lowest sole corner at most this high: candidate contact [m]
-    contact_speed_m_s: float = 0.4  # and sole horizontal speed at most this: contact [m/s]
-    ground_to_lowest_sole: bool = True  # shift the clip vertically so its lowest sole is at z=0
+    contact_height_m: float = 0.04  # a sole enters contact at most this high above ground [m]
+    contact_release_height_m: float = 0.07  # and leaves it only above this height [m]
+    contact_speed_m_s: float = 0.4  # a sole enters contact at most this fast horizontally [m/s]
+    contact_release_speed_m_s: float = 0.8  # and leaves it only above this speed [m/s]
+    support_fallback: bool = True  # no sole in contact and base not falling: lowest sole is [-]
+    support_fallback_height_m: float = 0.15  # that lowest sole is at most this high [m]
+    ballistic_accel_m_s2: float = 5.0  # base falls faster than this (of g 9.81): airborne [m/s^2]
+    ground_to_lowest_sole: bool = True  # shift the clip vertically so the ground estimate is z=0
+    ground_percentile: float = 5.0  # ground = this percentile of the per-frame lowest sole [%]
+    despike: bool = True  # replace single-frame outliers (Hampel filter) before resampling [-]
+    despike_threshold_m: float = 0.02  # base/joint spike above its 5-frame median [m or rad]
+    max_no_contact_share: float = 0.5  # more frames than this without a sole down: error [-]
+    warn_no_contact_share: float = 0.1  # more than this: plausibility warning [-]
     max_frames: int = 0  # keep only the first frames after resampling; 0 = all [-]
     # Plausibility of the base motion between consecutive source frames. A sprinting human peaks
     # near 10 m/s and a G1 backflip leaves the ground at about 3 m/s; 10 m/s flags a glitch (a
@@ -264,25 +279,160 @@ def sole_corner_heights_m(q: np.ndarray, robot: G1Pinocchio | None = None) -> np
     return heights, origins
 
 
+class ClipPlausibilityWarning(UserWarning):
+    """A clip loads but looks implausible as a physical motion (see :func:`clip_plausibility`)."""
+
+
+def despike(rows: np.ndarray, threshold: float = 0.02) -> tuple[np.ndarray, int]:
+    """Replace single-frame outliers of the base position and joints (rows (T, 36)).
+
+    Per column (base xyz [m], joints [rad]; the quaternion is left alone): a sample further than
+    ``threshold`` from its neighbours' mean, and more than 4 x the median such deviation of its
+    9-frame window (the motion's own curvature), is replaced by that mean. Retargeting produces
+    such one-frame glitches (a foot snapped through the floor); a spline would spread them over
+    several frames of acceleration. Returns the cleaned rows and the number of replaced samples.
+    """
+    out = np.array(rows, dtype=float, copy=True)
+    if out.shape[0] < 9:
+        return out, 0
+    cols = np.r_[0:3, 7 : out.shape[1]]
+    x = out[:, cols]
+    pad = np.pad(x, ((1, 1), (0, 0)), mode="edge")
+    mean_nb = 0.5 * (pad[:-2] + pad[2:])
+    dev = np.abs(x - mean_nb)  # half the second difference: curvature of the motion
+    pad_dev = np.pad(dev, ((4, 4), (0, 0)), mode="edge")
+    typical = np.median(np.stack([pad_dev[k : k + x.shape[0]] for k in range(9)]), axis=0)
+    # A spike stands out from the motion's own curvature around it (fast limbs curve a lot).
+    peak = np.ones_like(dev, dtype=bool)
+    peak[1:] &= dev[1:] > dev[:-1]
+    peak[:-1] &= dev[:-1] > dev[1:]  # a spike's neighbours deviate by half as much
+    spike = (dev > threshold) & (dev > 4.0 * typical) & peak
+    spike[[0, -1]] = False
+    x[spike] = mean_nb[spike]
+    out[:, cols] = x
+    return out, int(spike.sum())
+
+
+def estimate_ground_m(heights_m: np.ndarray, percentile: float = 5.0) -> float:
+    """Floor height [m] from the lowest sole corner per frame and sole (T, 2).
+
+    A low percentile of the per-frame lowest sole, not the single lowest corner: retargeted clips
+    sink a foot through the floor for a frame or two, and one such outlier would lift the whole clip
+    (every planted sole then hovers and reads as flying).
+    """
+    return float(np.percentile(np.min(heights_m, axis=1), percentile))
+
+
+def _hysteresis(enter: np.ndarray, stay: np.ndarray) -> np.ndarray:
+    """(T, S) bool: on where ``enter``; stays on while ``stay``; off otherwise."""
+    out = np.zeros_like(enter)
+    state = enter[0].copy()
+    for t in range(enter.shape[0]):
+        state = np.where(state, stay[t], enter[t])
+        out[t] = state
+    return out
+
+
 def infer_contacts(
     q: np.ndarray,
     dt: float,
-    height_m: float = 0.03,
+    height_m: float = 0.04,
     speed_m_s: float = 0.4,
     robot: G1Pinocchio | None = None,
+    release_height_m: float | None = None,
+    release_speed_m_s: float | None = None,
+    ground_m: float = 0.0,
+    support_fallback: bool = True,
+    ballistic_accel_m_s2: float = 5.0,
+    support_fallback_height_m: float = 0.15,
 ) -> np.ndarray:
-    """Sole contacts (T, 2) bool [left, right]: lowest corner low enough and sole slow enough.
+    """Sole contacts (T, 2) bool [left, right] with hysteresis on height and horizontal speed.
 
-    Single-frame flickers are removed (a frame takes the value of both neighbours when they agree).
+    A sole enters contact when its lowest corner is at most ``height_m`` above ``ground_m`` and its
+    centre moves at most ``speed_m_s`` horizontally [m/s]; it stays in contact until it is higher
+    than ``release_height_m`` or faster than ``release_speed_m_s`` (defaults: 1.75 x and 2 x the
+    entry thresholds). With ``support_fallback``, a frame with no sole down whose base is not in
+    free fall (vertical base acceleration above ``-ballistic_accel_m_s2``) gets its lower sole in
+    contact when that sole is slower than the release speed and at most
+    ``support_fallback_height_m`` high: a robot that is not falling is supported. Single-frame flickers are removed last.
     """
+    release_height_m = 1.75 * height_m if release_height_m is None else release_height_m
+    release_speed_m_s = 2.0 * speed_m_s if release_speed_m_s is None else release_speed_m_s
     heights, origins = sole_corner_heights_m(q, robot)
+    heights = heights - ground_m
     speed = np.linalg.norm(np.gradient(origins[..., :2], dt, axis=0), axis=-1)
-    contacts = (heights <= height_m) & (speed <= speed_m_s)
+    enter = (heights <= height_m) & (speed <= speed_m_s)
+    stay = (heights <= release_height_m) & (speed <= release_speed_m_s)
+    contacts = _hysteresis(enter, stay)
+    if support_fallback and q.shape[0] >= 3:
+        base_acc_z = np.gradient(np.gradient(q[:, 2], dt), dt)
+        lower = np.argmin(heights, axis=1)
+        rows = np.arange(q.shape[0])
+        fix = (
+            ~contacts.any(axis=1)
+            & (base_acc_z > -ballistic_accel_m_s2)
+            & (speed[rows, lower] <= release_speed_m_s)
+            & (heights[rows, lower] <= support_fallback_height_m)
+        )
+        contacts[rows[fix], lower[fix]] = True
     if contacts.shape[0] >= 3:
         same = contacts[:-2] == contacts[2:]
         middle = contacts[1:-1]
         middle[same] = contacts[:-2][same]
     return contacts
+
+
+def clip_plausibility(
+    contacts: np.ndarray,
+    base_rows_w: np.ndarray,
+    fps: float,
+    ground_m: float,
+    lowest_sole_m: np.ndarray,
+    despiked_samples: int = 0,
+) -> dict:
+    """Plausibility figures of a clip (JSON-ready; the oracle adds ``unaided_share_alpha_1``).
+
+    Args:
+        contacts: (T, 2) bool sole contacts of the reference.
+        base_rows_w: (T0, 3) base positions of the source clip [m].
+        fps: source frame rate [1/s].
+        ground_m: the floor estimate the clip was shifted by [m].
+        lowest_sole_m: (T,) lowest sole corner per frame after the shift [m].
+        despiked_samples: samples replaced by :func:`despike`.
+    """
+    jumps = np.linalg.norm(np.diff(base_rows_w, axis=0), axis=1)
+    k = int(np.argmax(jumps)) if jumps.size else 0
+    return {
+        "no_contact_share": float(np.mean(~contacts.any(axis=1))),
+        "double_contact_share": float(np.mean(contacts.all(axis=1))),
+        "largest_base_jump_m": float(jumps[k]) if jumps.size else 0.0,
+        "largest_base_jump_frame": k,
+        "largest_base_speed_m_s": float(jumps[k] * fps) if jumps.size else 0.0,
+        "ground_estimate_m": float(ground_m),
+        "lowest_sole_percentiles_m": {
+            f"p{p}": float(np.percentile(lowest_sole_m, p)) for p in (1, 5, 50, 95, 99)
+        },
+        "despiked_samples": int(despiked_samples),
+    }
+
+
+def plausibility_problems(report: dict, cfg: ClipConfig = ClipConfig()) -> list[str]:
+    """Human-readable problems of a plausibility report (empty: plausible)."""
+    problems = []
+    share = report["no_contact_share"]
+    if share > cfg.warn_no_contact_share:
+        problems.append(
+            f"{100 * share:.0f} % of the frames have no sole in contact (more than "
+            f"{100 * cfg.warn_no_contact_share:.0f} %): the pelvis would carry a flying robot; "
+            "check the ground height, the units and the contact thresholds (--clip-contact-*)"
+        )
+    unaided = report.get("unaided_share_alpha_1")
+    if unaided is not None and unaided < 0.5:
+        problems.append(
+            f"only {100 * unaided:.0f} % of the frames are doable unaided at alpha = 1: the clip "
+            "is far from physically consistent for the G1"
+        )
+    return problems
 
 
 def reference_from_configurations(
@@ -294,15 +444,33 @@ def reference_from_configurations(
     contacts: np.ndarray | None = None,
     robot: G1Pinocchio | None = None,
 ) -> Reference:
-    """Reference from configurations (T, 36) at step ``dt``: differentiate, infer contacts."""
+    """Reference from configurations (T, 36) at step ``dt``: ground, differentiate, contacts.
+
+    With ``cfg.ground_to_lowest_sole`` the clip is shifted so that the robust ground estimate
+    (:func:`estimate_ground_m`) is at z = 0. ``extras["lowest_sole_m"]`` (T,) holds the lowest sole
+    corner per frame after the shift [m].
+    """
     robot = robot or build_pinocchio_model()
     q = np.array(q, dtype=float)
+    heights, _ = sole_corner_heights_m(q, robot)
     if cfg.ground_to_lowest_sole:
-        heights, _ = sole_corner_heights_m(q, robot)
-        q[:, 2] -= heights.min()
+        ground = estimate_ground_m(heights, cfg.ground_percentile)
+        q[:, 2] -= ground
+        heights = heights - ground
     v, a = differentiate(q, dt, cfg.smoothing_window_s, cfg.polyorder, robot)
     if contacts is None:
-        contacts = infer_contacts(q, dt, cfg.contact_height_m, cfg.contact_speed_m_s, robot)
+        contacts = infer_contacts(
+            q,
+            dt,
+            cfg.contact_height_m,
+            cfg.contact_speed_m_s,
+            robot,
+            release_height_m=cfg.contact_release_height_m,
+            release_speed_m_s=cfg.contact_release_speed_m_s,
+            support_fallback=cfg.support_fallback,
+            ballistic_accel_m_s2=cfg.ballistic_accel_m_s2,
+            support_fallback_height_m=cfg.support_fallback_height_m,
+        )
     num = q.shape[0]
     return Reference(
         time_s=np.arange(num) * dt,
@@ -317,14 +485,50 @@ def reference_from_configurations(
     ).validate()
 
 
-def load_motion_clip(
+def load_motion_clip_with_report(
     path: str | Path, cfg: ClipConfig = ClipConfig(), name: str = "dance"
-) -> Reference:
-    """Load, validate, resample and differentiate a clip file into a one-phase reference."""
+) -> tuple[Reference, dict]:
+    """Like :func:`load_motion_clip`, and the plausibility report (:func:`clip_plausibility`).
+
+    Raises :class:`ClipError` when more than ``cfg.max_no_contact_share`` of the frames have no
+    sole in contact; warns (:class:`ClipPlausibilityWarning`) above ``cfg.warn_no_contact_share``.
+    """
     robot = build_pinocchio_model()
     rows, fps = read_clip(path, cfg)
-    rows = validate_clip(rows, fps, cfg, robot, source=f"Motion clip '{path}'")
+    source = f"Motion clip '{path}'"
+    rows = validate_clip(rows, fps, cfg, robot, source=source)
+    replaced = 0
+    if cfg.despike:
+        rows, replaced = despike(rows, cfg.despike_threshold_m)
+        rows[:, 3:7] /= np.linalg.norm(rows[:, 3:7], axis=1, keepdims=True)
     q = resample(rows, fps, cfg.target_fps)
     if cfg.max_frames > 0:
         q = q[: cfg.max_frames]
-    return reference_from_configurations(q, 1.0 / cfg.target_fps, cfg, name=name, robot=robot)
+    ref = reference_from_configurations(q, 1.0 / cfg.target_fps, cfg, name=name, robot=robot)
+    heights, _ = sole_corner_heights_m(ref.q, robot)
+    raw_heights, _ = sole_corner_heights_m(q, robot)
+    ground = float(np.min(raw_heights) - np.min(heights)) if cfg.ground_to_lowest_sole else 0.0
+    report = clip_plausibility(
+        ref.contacts, rows[:, :3], fps, ground, heights.min(axis=1), replaced
+    )
+    share = report["no_contact_share"]
+    if share > cfg.max_no_contact_share:
+        raise ClipError(
+            f"{source}: {100 * share:.0f} % of the frames have no sole in contact (at most "
+            f"{100 * cfg.max_no_contact_share:.0f} % allowed, --clip-max-no-contact-share): the "
+            "pelvis would have to carry the robot. Check that positions are in metres, z is up, "
+            "and the contact thresholds (--clip-contact-height-m) suit the clip."
+        )
+    for problem in plausibility_problems(report, cfg):
+        warnings.warn(f"{source}: {problem}", ClipPlausibilityWarning, stacklevel=2)
+    return ref, report
+
+
+def load_motion_clip(
+    path: str | Path, cfg: ClipConfig = ClipConfig(), name: str = "dance"
+) -> Reference:
+    """Load, validate, despike, resample and differentiate a clip file into a one-phase reference.
+
+    See :func:`load_motion_clip_with_report` for the plausibility checks it runs.
+    """
+    return load_motion_clip_with_report(path, cfg, name)[0]

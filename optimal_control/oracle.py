@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -196,14 +197,32 @@ def solve_dance(
 ) -> tuple[OracleArtifact, Path]:
     """Oracle artifact of the built-in dance, or of a motion clip file when ``clip`` is given."""
     from optimal_control.dance import DanceConfig, built_in_dance, pose_summary
-    from optimal_control.motion_clip import ClipConfig, load_motion_clip
+    from optimal_control.motion_clip import (
+        ClipConfig,
+        load_motion_clip_with_report,
+        plausibility_problems,
+    )
 
     cfg = resolve_output("dance", cfg)
     start = time.perf_counter()
+    finish = None
     if clip:
         clip_cfg = clip_cfg or ClipConfig()
-        ref = load_motion_clip(clip, clip_cfg)
-        summary = {"source": {"clip": str(clip), "clip_config": dataclasses.asdict(clip_cfg)}}
+        ref, plausibility = load_motion_clip_with_report(clip, clip_cfg)
+        summary = {
+            "source": {"clip": str(clip), "clip_config": dataclasses.asdict(clip_cfg)},
+            "clip_plausibility": plausibility,
+        }
+
+        def finish(art: OracleArtifact) -> None:
+            report = art.extra_summary["clip_plausibility"]
+            known = len(plausibility_problems(report, clip_cfg))  # warned at load
+            if 1.0 in art.profiles:
+                report["unaided_share_alpha_1"] = float(art.profiles[1.0].unaided.mean())
+            report["problems"] = plausibility_problems(report, clip_cfg)
+            for problem in report["problems"][known:]:
+                warnings.warn(f"Motion clip '{clip}': {problem}", stacklevel=3)
+
     else:
         dance_cfg = dance_cfg or DanceConfig()
         plan = built_in_dance(dance_cfg)
@@ -215,7 +234,7 @@ def solve_dance(
         }
     summary["reference_time_s"] = time.perf_counter() - start
     summary["pose_summary"] = pose_summary(ref)
-    return solve_reference_oracle("dance", ref, cfg, summary)
+    return solve_reference_oracle("dance", ref, cfg, summary, finish=finish)
 
 
 def format_summary(art: OracleArtifact, folder: Path) -> str:
