@@ -57,6 +57,7 @@ CHECKPOINT_DIR = "checkpoints"
 LAST_CHECKPOINT = "last.pt"
 CURRICULUM_LOG = "curriculum.jsonl"
 METRICS_FILE = "metrics.json"
+WARMSTART_FILE = "warmstart.json"
 POLICY_FILE = "policy.onnx"
 CHECKPOINT_FORMAT = 2
 """Version of the checkpoint layout (2: env state and curriculum event inside)."""
@@ -290,6 +291,60 @@ class A2CFRunner(OnPolicyRunner):
         atomic_write_text(self.run_dir / CURRICULUM_LOG, text)
 
 
+def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
+    """eta0 from the oracle artifact named by ``--warmstart`` (None for a built-in coach).
+
+    The artifact's task and phases must be the training task's."""
+    from rl.coaches import COACHES
+
+    if not cfg.warmstart or cfg.warmstart in COACHES:
+        return None
+    folder = Path(cfg.warmstart)
+    if not (folder / "oracle.json").is_file():
+        raise ValueError(
+            f"--warmstart '{cfg.warmstart}' is neither a built-in coach ({sorted(COACHES)}) nor an "
+            "oracle artifact folder (no oracle.json): run a2cf-mb solve-* first"
+        )
+    from optimal_control.artifact import verify_manifest
+
+    verify_manifest(folder)
+    summary = json.loads((folder / "oracle.json").read_text())
+    phases = tuple(summary.get("phase_names", ()))
+    eta0 = torch.tensor(summary["eta0"], dtype=torch.float32)
+    if summary.get("task") != task.name:
+        raise ValueError(
+            f"--warmstart artifact {folder} is for task '{summary.get('task')}', the training "
+            f"task is '{task.name}': solve the oracle for '{task.name}'"
+        )
+    if phases == task.phase_names:
+        return eta0
+    if task.num_phases == 1:
+        return eta0.max(dim=0, keepdim=True).values  # one bound covering every oracle phase
+    raise ValueError(
+        f"--warmstart artifact {folder} has phases {list(phases)}; the training task "
+        f"'{task.name}' has phases {list(task.phase_names)}"
+    )
+
+
+def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
+    """Distil the coach into the assist head before PPO (curriculum detached meanwhile)."""
+    from rl.coaches import COACHES, PostureCoach
+    from rl.warmstart import distill_assist_head
+
+    event = env.curriculum_event
+    env.attach_curriculum(None)  # the distillation's env steps are no rollout of Algorithm 1
+    if cfg.warmstart in COACHES:
+        coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
+    else:
+        # The reference-tracking coach of an artifact lives in optimal_control.coach; until it is
+        # wired here, the artifact gives eta0 and the as-needed posture coach the head's start.
+        coach = PostureCoach.for_env(env)
+        source = f"eta0 from artifact {cfg.warmstart}; as-needed posture coach"
+    report = distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
+    env.attach_curriculum(event)
+    return {"coach": source, **report}
+
+
 def seed_everything(seed: int) -> None:
     """Seed python, numpy and torch."""
     random.seed(seed)
@@ -382,6 +437,8 @@ def build_training(
     """The env (with the curriculum event attached in assist modes) and the runner of a run."""
     mode = get_mode(cfg.mode)
     task = resolve_task(cfg)
+    if eta0 is None:
+        eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(cfg.env, task)
     env.set_random_mask_prob(cfg.random_mask_prob if mode.random_mask else 0.0)
     if mode.assist:
@@ -451,6 +508,9 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
             },
         )
         atomic_write_json(run_dir / "git.json", git_revision(Path(__file__).resolve().parent))
+
+    if cfg.warmstart and checkpoint is None:
+        atomic_write_json(run_dir / WARMSTART_FILE, warm_start(cfg, env, runner))
 
     remaining = cfg.iterations - runner.completed_iterations
     try:

@@ -11,6 +11,7 @@ from rl.agents.modes import get_mode
 from rl.assist import DEFAULT_RANDOM_MASK_PROB
 from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
+from rl.warmstart import WarmStartConfig
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,10 @@ class TrainConfig:
     ppo: PPOConfig = field(default_factory=PPOConfig)  # PPO hyper-parameters
     model: ModelConfig = field(default_factory=ModelConfig)  # network sizes and VAE weights
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)  # Algorithm 1
+    warmstart: str = ""  # distil the assist head from a coach first: "posture" (built-in, as needed) or an oracle artifact folder; empty: none [-]
+    distill: WarmStartConfig = field(
+        default_factory=WarmStartConfig
+    )  # DAgger rounds of the warm start
     task_overrides: dict[str, Any] = field(
         default_factory=dict
     )  # dotted task-field changes, see rl.task_overrides
@@ -83,6 +88,10 @@ class TrainConfig:
                 raise ValueError(f"train config '{name}' must be > 0, got {getattr(self, name)}")
         if not 0.0 <= self.random_mask_prob < 1.0:
             raise ValueError(f"random_mask_prob must be in [0, 1), got {self.random_mask_prob}")
+        if self.warmstart and not get_mode(self.mode).assist:
+            raise ValueError(
+                f"--warmstart needs an assist head; mode '{self.mode}' has none (use a2cf)"
+            )
         batch = self.env.num_envs * self.num_steps_per_env
         if batch < self.ppo.num_mini_batches:
             raise ValueError(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
@@ -10,6 +12,7 @@ from stand_envs import stand_env
 
 from rl.assist import AssistState, assist_wrench, sample_mask, squash_wrench
 from rl.envs.model import CONTROL_SPEC, STATE_SPEC
+from rl.envs.state import heading_to_world, world_to_heading
 from robots import g1
 
 ETA = torch.tensor([[80.0, 60.0, 200.0, 15.0, 10.0, 5.0]])
@@ -39,16 +42,23 @@ def test_wrench_read_back_from_the_rollout_mjdata():
     seen_dropped = seen_kept = False
     for _ in range(6):
         raw = 2.0 * torch.randn(1, 6, generator=generator)
+        quat = torch.as_tensor(env.state[:, env.layout.qpos][:, 3:7]).float()  # heading this step
         _, _, dones, extras = env.step(actions_with_raw(env, raw))
         assert not dones.any()
         mask = env.assist_mask
-        expected = (mask * ETA * torch.tanh(raw)).double().numpy()[0]
+        expected_h = mask * ETA * torch.tanh(raw)  # in the robot's heading frame
+        expected = heading_to_world(expected_h, quat).double().numpy()[0]
         applied = pelvis_xfrc(env, env.physics_datas[0])
-        np.testing.assert_allclose(applied, expected, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(applied, expected, rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(
-            extras["assist"]["applied_wrench"][0].numpy(), expected, rtol=1e-6
+            extras["assist"]["applied_wrench"][0].numpy(), expected_h.numpy()[0], rtol=1e-6
         )
-        assert (np.abs(applied) <= ETA.numpy()[0] + 1e-6).all()
+        assert (extras["assist"]["applied_wrench"].abs() <= ETA + 1e-6).all()
+        # the heading rotation keeps the vertical parts and the horizontal magnitudes
+        assert applied[2] == pytest.approx(float(expected_h[0, 2]), abs=1e-5)
+        assert np.linalg.norm(applied[:2]) == pytest.approx(
+            float(expected_h[0, :2].norm()), rel=1e-5
+        )
         assert set(mask.unique().tolist()) <= {0.0, 1.0}
         seen_dropped |= bool((mask == 0).any())
         seen_kept |= bool((mask == 1).any())
@@ -62,9 +72,12 @@ def test_wrench_read_back_from_the_rollout_mjdata():
 def test_wrench_is_zero_when_disabled_and_after_reset():
     env = assist_env(1, 1, random_mask_prob=0.0)
     raw = torch.full((1, 6), 3.0)
+    quat = torch.as_tensor(env.state[:, env.layout.qpos][:, 3:7]).float()
     env.step(actions_with_raw(env, raw))
     np.testing.assert_allclose(
-        pelvis_xfrc(env, env.physics_datas[0]), (ETA * np.tanh(3.0)).numpy()[0], rtol=1e-6
+        pelvis_xfrc(env, env.physics_datas[0]),
+        heading_to_world(ETA * np.tanh(3.0), quat).numpy()[0],
+        rtol=1e-5,
     )
     env.set_assist_enabled(False)
     _, _, _, extras = env.step(actions_with_raw(env, raw))
@@ -78,8 +91,7 @@ def test_wrench_is_zero_when_disabled_and_after_reset():
     assert extras["assist"]["applied_wrench"].abs().sum() > 0  # applied during the fatal step
     assert not env.applied_wrench.any()  # cleared with the reset
     assert not env.env_state.applied_wrench.any()
-    critic_wrench = env.get_observations()["critic"][:, -g1.NUM_JOINTS - 6 : -g1.NUM_JOINTS]
-    assert not critic_wrench.any()
+    assert not env.observation_term("critic", "applied_wrench").any()
     env.set_random_mask_prob(1.0)  # zeta = 1 drops every component
     _, _, _, extras = env.step(actions_with_raw(env, raw))
     assert not pelvis_xfrc(env, env.physics_datas[0]).any()
@@ -97,11 +109,15 @@ def test_replayed_physics_matches_the_batched_step():
     assert not dones.any()
     expected = env.assist_mask * ETA * torch.tanh(actions[:, g1.NUM_JOINTS :])
     torch.testing.assert_close(extras["assist"]["applied_wrench"], expected)
+    quat = torch.as_tensor(state_before[:, env.layout.qpos][:, 3:7]).float()
+    expected_w = heading_to_world(expected, quat)
     data = mujoco.MjData(env.model)
     for i in range(4):
         mujoco.mj_setState(env.model, data, state_before[i], STATE_SPEC)
         mujoco.mj_setState(env.model, data, env.control[i, 0], CONTROL_SPEC)
-        np.testing.assert_allclose(pelvis_xfrc(env, data), expected[i].double().numpy(), rtol=1e-6)
+        np.testing.assert_allclose(
+            pelvis_xfrc(env, data), expected_w[i].double().numpy(), rtol=1e-5, atol=1e-5
+        )
         targets = g1.STAND_JOINT_POS_RAD + g1.ACTION_SCALE_RAD * actions[i, :29].double().numpy()
         np.testing.assert_allclose(data.ctrl, targets, atol=1e-6)
         for _ in range(env.cfg.decimation):
@@ -135,6 +151,18 @@ def test_wrench_acts_in_world_frame_on_the_pelvis():
         domega_w = rot.reshape(3, 3) @ (results["assist"][1][i] - results["none"][1][i])
         assert domega_w[2] > 0.05
         assert abs(domega_w[2]) > 3 * np.abs(domega_w[:2]).max()
+
+
+def test_heading_frame_of_the_assist_wrench():
+    """fx pushes along the robot's heading, my is the robot's pitch torque, whatever its yaw."""
+    yaw = torch.tensor([0.0, math.pi / 2, math.pi])
+    quat = torch.stack([torch.cos(yaw / 2), 0 * yaw, 0 * yaw, torch.sin(yaw / 2)], dim=-1)
+    push = torch.tensor([[10.0, 0, 5, 0, 3, 1]]).expand(3, 6)
+    world = heading_to_world(push, quat)
+    torch.testing.assert_close(world[1], torch.tensor([0.0, 10, 5, -3, 0, 1]), atol=1e-5, rtol=0)
+    torch.testing.assert_close(world[2], torch.tensor([-10.0, 0, 5, 0, -3, 1]), atol=1e-5, rtol=0)
+    torch.testing.assert_close(world[0], push[0])
+    torch.testing.assert_close(world_to_heading(world, quat), push, atol=1e-5, rtol=0)
 
 
 def test_pure_assist_functions():

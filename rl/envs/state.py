@@ -38,6 +38,39 @@ def quat_multiply(a_wxyz: torch.Tensor, b_wxyz: torch.Tensor) -> torch.Tensor:
     )
 
 
+def heading_to_world(wrench_h: torch.Tensor, quat_wxyz: torch.Tensor) -> torch.Tensor:
+    """Rotate wrenches (N, 6) from each robot's heading frame (x forward along the pelvis yaw,
+    z up) to the world frame, for ``xfrc_applied``.
+
+    Why a heading frame: episodes start at a random yaw, and nothing the force agent observes
+    tells it the heading, so a world-frame ``mx`` is a different push for every robot; in the
+    heading frame ``my`` is always the pitch torque a backflip needs and ``fx`` a forward push
+    (the paper's per-axis bounds read that way; the oracle's references face +x, where the two
+    frames agree).
+    """
+    return _rotate_yaw(wrench_h, yaw_rad(quat_wxyz))
+
+
+def world_to_heading(wrench_w: torch.Tensor, quat_wxyz: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`heading_to_world`: world-frame wrenches (N, 6) in the heading frame."""
+    return _rotate_yaw(wrench_w, -yaw_rad(quat_wxyz))
+
+
+def yaw_rad(quat_wxyz: torch.Tensor) -> torch.Tensor:
+    """Heading (yaw about world z) of quaternions (N, 4) w x y z [rad]."""
+    w, x, y, z = quat_wxyz.unbind(-1)
+    return torch.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _rotate_yaw(wrench_h: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    out = wrench_h.clone()
+    for k in (0, 3):  # force, then torque: rotate the horizontal components
+        out[:, k] = c * wrench_h[:, k] - s * wrench_h[:, k + 1]
+        out[:, k + 1] = s * wrench_h[:, k] + c * wrench_h[:, k + 1]
+    return out
+
+
 FOOT_CONTACT_THRESHOLD_N = 1.0
 """Sole normal force above which a foot counts as on the ground (air/contact timers) [N]."""
 

@@ -39,6 +39,7 @@ from rl.envs.randomization import ModelRandomizer, nominal_params, sample_params
 from rl.envs.state import (
     FOOT_CONTACT_THRESHOLD_N,
     EnvState,
+    heading_to_world,
     quat_multiply,
     quat_rotate_inverse,
 )
@@ -57,7 +58,8 @@ class G1VecEnv(VecEnv):
     """Batched G1 environment implementing ``rsl_rl.env.VecEnv`` (see ``rl_contract.md``).
 
     Actions (N, 35): [:, :29] motion action a (joint target = stand + ACTION_SCALE_RAD * a),
-    [:, 29:] raw assist head output, applied as F = mask * eta[phase] * tanh(raw) to the pelvis.
+    [:, 29:] raw assist head output, applied as F = mask * eta[phase] * tanh(raw) to the pelvis,
+    F in the robot's heading frame (see :func:`rl.envs.state.heading_to_world`).
     """
 
     def __init__(
@@ -222,7 +224,8 @@ class G1VecEnv(VecEnv):
 
         targets = self._stand_rad + self._action_scale * self.action
         self._control_t[:, :, lay.ctrl] = targets.unsqueeze(1).double()
-        self._control_t[:, :, lay.pelvis_wrench] = wrench.unsqueeze(1).double()
+        wrench_w = heading_to_world(wrench, self._state_t[:, lay.qpos][:, 3:7].float())
+        self._control_t[:, :, lay.pelvis_wrench] = wrench_w.unsqueeze(1).double()
         self._push()
 
         # Rows already broken (e.g. written from outside) never enter the physics.

@@ -1,0 +1,150 @@
+"""Warm start of the force agent: the assist head distilled from a coach before PPO starts.
+
+DAgger-style: the env runs with the learner's motion policy acting (so the states are those the
+learner visits) while the applied assist wrench is the coach's in the first round and the
+student's own afterwards; every visited state is labelled with the coach's wrench. The assist
+head's mean, through the bound and the squash (``eta * tanh(raw)``), is regressed onto the labels
+(error in units of the bound, axes with a zero bound skipped); then its initial std is set.
+The fit per axis on held-out states is reported (``warmstart.json`` in the run folder).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import torch
+from tensordict import TensorDict
+
+from rl.agents.models import A2CFActor
+from rl.curriculum import WRENCH_AXES
+from rl.envs.state import EnvState
+from rl.envs.vec_env import G1VecEnv
+from robots import g1
+
+Coach = Callable[[EnvState], torch.Tensor]
+"""A coach: batch state -> pelvis wrench (N, 6) [N, Nm] in the robot's heading frame (the assist
+action's frame, :func:`rl.envs.state.heading_to_world`), within the current bound."""
+
+
+@dataclass(frozen=True)
+class WarmStartConfig:
+    """DAgger rounds, regression and the head's initial std after the warm start."""
+
+    rounds: int = (
+        3  # DAgger rounds (round 0 applies the coach's wrench, later ones the student's) [-]
+    )
+    steps_per_round: int = 48  # env steps collected per round [-]
+    epochs: int = 30  # passes over the dataset after each round [-]
+    batch_size: int = 512  # regression mini-batch [-]
+    learning_rate: float = 1e-3  # Adam learning rate of the assist head [-]
+    held_out: float = (
+        0.2  # share of the last round's samples kept out of the fit for the report [-]
+    )
+    assist_std: float = 0.3  # std of the raw assist actions after the warm start (before tanh) [-]
+    seed: int = 0  # shuffling seed [-]
+
+    def __post_init__(self) -> None:
+        if min(self.rounds, self.steps_per_round, self.epochs, self.batch_size) < 1:
+            raise ValueError(
+                "warm start rounds, steps_per_round, epochs and batch_size must be >= 1"
+            )
+        if not 0.0 < self.held_out < 1.0:
+            raise ValueError(f"warm start held_out must be in (0, 1), got {self.held_out}")
+        if self.assist_std <= 0:
+            raise ValueError(f"warm start assist_std must be > 0, got {self.assist_std}")
+
+
+def _raw_from_wrench(wrench: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
+    """The raw head output whose squash gives ``wrench`` (atanh of the bound fraction, clipped)."""
+    ratio = torch.where(bound > 0, wrench / bound.clamp_min(1e-9), 0.0).clamp(-0.995, 0.995)
+    return torch.atanh(ratio)
+
+
+def _assist_mean(actor: A2CFActor, obs: TensorDict) -> torch.Tensor:
+    return actor(obs)[:, g1.NUM_JOINTS :]
+
+
+def _loss(raw: torch.Tensor, target: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
+    """Squared error of ``eta * tanh(raw)`` against the label, in units of the bound."""
+    used = (bound > 0).float()
+    err = (bound * torch.tanh(raw) - target) / bound.clamp_min(1e-9) * used
+    return err.square().sum() / used.sum().clamp_min(1.0)
+
+
+def distill_assist_head(
+    actor: A2CFActor, env: G1VecEnv, coach: Coach, cfg: WarmStartConfig = WarmStartConfig()
+) -> dict[str, Any]:
+    """Distil ``coach`` into ``actor``'s assist head in ``env`` (see the module docstring).
+
+    Returns the report: per-axis RMSE [N, Nm] and R^2 on held-out states, the coach's and the
+    warm-started head's mean |wrench| there, dataset size.
+    """
+    if actor.mlp.assist is None:
+        raise ValueError("the warm start needs an assist head (mode a2cf or an ablation)")
+    generator = torch.Generator().manual_seed(cfg.seed)
+    optimizer = torch.optim.Adam(actor.mlp.assist.parameters(), lr=cfg.learning_rate)
+    data: dict[str, list] = {"obs": [], "target": [], "bound": [], "round": []}
+    obs = env.get_observations()
+    for rnd in range(cfg.rounds):
+        with torch.no_grad():
+            for _ in range(cfg.steps_per_round):
+                state = env.env_state
+                target = coach(state)
+                bound = state.assist_bound.clone()
+                actor.update_normalization(obs)
+                actions = actor(obs, stochastic_output=True)
+                if rnd == 0:
+                    actions[:, g1.NUM_JOINTS :] = _raw_from_wrench(target, bound)
+                data["obs"].append(obs.clone())
+                data["target"].append(target)
+                data["bound"].append(bound)
+                data["round"].append(torch.full((target.shape[0],), rnd))
+                obs, _, _, _ = env.step(actions)
+        all_obs = torch.cat(data["obs"])
+        target, bound = torch.cat(data["target"]), torch.cat(data["bound"])
+        rounds = torch.cat(data["round"])
+        last = torch.nonzero(rounds == cfg.rounds - 1).flatten()
+        held = last[
+            torch.randperm(last.numel(), generator=generator)[: int(cfg.held_out * last.numel())]
+        ]
+        train_mask = torch.ones(target.shape[0], dtype=torch.bool)
+        train_mask[held] = False
+        train_ids = train_mask.nonzero().flatten()
+        for _ in range(cfg.epochs):
+            order = train_ids[torch.randperm(train_ids.numel(), generator=generator)]
+            for start in range(0, order.numel(), cfg.batch_size):
+                idx = order[start : start + cfg.batch_size]
+                loss = _loss(_assist_mean(actor, all_obs[idx]), target[idx], bound[idx])
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+    actor._set_assist_std(cfg.assist_std)
+    return _report(actor, all_obs[held], target[held], bound[held], cfg, target.shape[0])
+
+
+def _report(actor, obs, target, bound, cfg, num_samples) -> dict[str, Any]:
+    with torch.no_grad():
+        applied = bound * torch.tanh(_assist_mean(actor, obs))
+    err = applied - target
+    var = target.var(dim=0)
+    per_axis = {}
+    for i, axis in enumerate(WRENCH_AXES):
+        rmse = float(err[:, i].square().mean().sqrt())
+        r2 = 1.0 - float(err[:, i].square().mean() / var[i]) if var[i] > 1e-12 else math.nan
+        per_axis[axis] = {
+            "rmse": rmse,
+            "r2": r2,
+            "coach_mean_abs": float(target[:, i].abs().mean()),
+            "head_mean_abs": float(applied[:, i].abs().mean()),
+        }
+    return {
+        "config": asdict(cfg),
+        "samples": int(num_samples),
+        "held_out_samples": int(target.shape[0]),
+        "share_of_states_helped": float((target.abs().sum(dim=-1) > 1e-6).float().mean()),
+        "held_out_fit": per_axis,
+        "loss_held_out": float(_loss(_assist_mean(actor, obs), target, bound).detach()),
+    }

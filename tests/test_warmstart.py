@@ -1,0 +1,86 @@
+"""Warm start: the as-needed posture coach, DAgger distillation of the assist head, --warmstart."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import pytest
+import torch
+
+from rl.coaches import PostureCoach, PostureCoachConfig
+from rl.envs.config import EnvConfig
+from rl.registry import make_env
+from rl.runner import train
+from rl.tasks.config import quiet
+from rl.tasks.stand import STAND
+from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.warmstart import WarmStartConfig, distill_assist_head
+
+TINY_MODEL = ModelConfig(motion_hidden_dims=(32,), assist_hidden_dims=(32, 32),
+                         critic_hidden_dims=(32,), encoder_hidden_dims=(32,), latent_dim=4)  # fmt: skip
+
+
+def tilted_state(env, pitch_rad: float, drop_m: float = 0.0):
+    """The env's state with the pelvis pitched forward by ``pitch_rad`` and lowered by ``drop_m``."""
+    s = env.env_state
+    q = torch.tensor([math.cos(pitch_rad / 2), 0.0, math.sin(pitch_rad / 2), 0.0])
+    s.base_quat_w = q.expand(env.num_envs, 4).clone()
+    s.base_pos_w = s.base_pos_w.clone()
+    s.base_pos_w[:, 2] = 0.74 - drop_m
+    s.base_ang_vel_b = torch.zeros(env.num_envs, 3)
+    s.base_lin_vel_w = torch.zeros(env.num_envs, 3)
+    s.assist_bound = torch.full((env.num_envs, 6), 1e4)
+    return s
+
+
+def test_posture_coach_helps_only_outside_its_band():
+    env = make_env(quiet(STAND), 2, num_threads=1)
+    coach = PostureCoach.for_env(env, PostureCoachConfig(tilt_band_rad=0.15, height_band_m=0.08))
+    inside = coach(tilted_state(env, 0.1, drop_m=0.05))
+    assert not inside.any()  # the learner is on its own inside the band
+    out = coach(tilted_state(env, 0.35, drop_m=0.2))
+    # pitched forward (about +y): the restoring torque is about -y; too low: pushed up
+    assert (out[:, 4] < 0).all() and (out[:, 2] > 0).all()
+    assert out[0, 4] == pytest.approx(-coach.kp_tilt * 0.2, rel=1e-3)
+    assert out[0, 2] == pytest.approx(coach.kp_height * 0.12, rel=1e-3)
+    # sized from mass and inertia: the tilt stiffness exceeds gravity's toppling stiffness m g h
+    assert coach.kp_tilt > env.total_mass_kg * 9.81 * 0.5
+    bounded = tilted_state(env, 0.6)
+    bounded.assist_bound = torch.full((2, 6), 5.0)
+    assert coach(bounded).abs().max() <= 5.0
+
+
+def test_distilled_head_reproduces_the_coach_on_held_out_states():
+    from rl.runner import build_training
+
+    cfg = TrainConfig(mode="a2cf", env=EnvConfig(num_envs=24, num_threads=2), model=TINY_MODEL,
+                      ppo=PPOConfig(num_mini_batches=2))  # fmt: skip
+    env, runner, _ = build_training(cfg, run_dir=None)
+    coach = PostureCoach.for_env(env)
+    report = distill_assist_head(runner.alg.actor, env, coach,
+                                 WarmStartConfig(rounds=2, steps_per_round=32, epochs=15))  # fmt: skip
+    fit = report["held_out_fit"]
+    assert report["share_of_states_helped"] > 0.1
+    for axis in ("mx", "my"):  # the balance torques, heading frame
+        assert fit[axis]["r2"] > 0.3, fit[axis]
+    assert fit["fx"]["coach_mean_abs"] == 0.0 and fit["fx"]["head_mean_abs"] < 1.0
+    std = runner.alg.actor.distribution.std_param.detach()
+    torch.testing.assert_close(std[29:], torch.full((6,), 0.3))
+    env.close()
+
+
+def test_train_with_warmstart_writes_the_report_and_refuses_bad_sources(tmp_path):
+    cfg = TrainConfig(mode="a2cf", warmstart="posture", iterations=1, num_steps_per_env=8,
+                      env=EnvConfig(num_envs=4, num_threads=2), model=TINY_MODEL,
+                      ppo=PPOConfig(num_mini_batches=2, num_learning_epochs=1),
+                      distill=WarmStartConfig(rounds=1, steps_per_round=8, epochs=2),
+                      out=str(tmp_path), run_name="ws", export_onnx=False)  # fmt: skip
+    result = train(cfg, verbose=False)
+    report = json.loads((result.run_dir / "warmstart.json").read_text())
+    assert report["coach"] == "built-in coach 'posture'" and report["samples"] == 32
+    with pytest.raises(ValueError, match="neither a built-in coach"):
+        train(dataclasses.replace(cfg, warmstart=str(tmp_path), run_name="bad"), verbose=False)
+    with pytest.raises(ValueError, match="needs an assist head"):
+        dataclasses.replace(cfg, mode="baseline")
