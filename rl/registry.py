@@ -14,9 +14,11 @@ from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
 from rl.tasks.config import TaskConfig
 from rl.tasks.stand import STAND
+from rl.tasks.walk import WALK
 
 TASKS: dict[str, TaskConfig] = {
     STAND.name: STAND,
+    WALK.name: WALK,
 }
 """Registered tasks by name, each with its default config."""
 
