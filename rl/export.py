@@ -1,15 +1,18 @@
-"""Export of the deployable motion policy (normaliser + history encoder + motion head) to ONNX.
+"""Export of the deployable motion policy (normaliser + history encoder + motion head) to ONNX,
+with the deployment bundle a robot-side script needs.
 
 The assist head is left out: at deployment no assistive force exists. The ONNX graph takes
-``obs`` (B, P) and ``history`` (B, H * P) (the env's "policy" and "history" groups, noisy as on the
-robot) and returns ``actions`` (B, 29); the joint target is
-``robots.g1.STAND_JOINT_POS_RAD + robots.g1.ACTION_SCALE_RAD * actions``. A ``policy.json`` next to
-the ``.onnx`` file describes this. Every export is checked against torch with onnxruntime.
+``obs`` (B, P) and ``history`` (B, H * P) (the env's "policy" and "history" groups) and returns
+``actions`` (B, 29). ``policy.json`` beside it (:func:`deployment_bundle`) says everything a
+deployment script needs without reading this code: joint order with default pose, action scale,
+PD gains, effort and position limits; the observation layout term by term (name, columns, unit,
+how to compute it, the noise trained with), the history length and order; the control rate.
+Every export is checked against torch with onnxruntime; a test rebuilds the observation from the
+bundle alone and compares it with the env's.
 """
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -17,14 +20,88 @@ from typing import Any
 import numpy as np
 import torch
 
+from optimal_control.files import atomic_write_json
 from rl.agents.models import A2CFActor, MotionPolicy
 
 ONNX_OPSET = 18
 """ONNX opset used for the export (rsl-rl's choice)."""
 
 
+BUNDLE_FORMAT = "a2cf-mb-policy/2"
+"""Version of ``policy.json``'s layout."""
+
+OBSERVATION_TERM_DOCS: dict[str, tuple[str, str]] = {
+    "base_ang_vel": (
+        "rad/s",
+        "pelvis angular velocity in the pelvis frame (IMU gyro on the pelvis)",
+    ),
+    "projected_gravity": ("-", "unit gravity direction (0, 0, -1) in the pelvis frame: R_wb^T g"),
+    "joint_pos": ("rad", "joint angles minus default_pos_rad, in the joint order below"),
+    "joint_vel": ("rad/s", "joint velocities, in the joint order below"),
+    "last_action": ("-", "the policy's previous output `actions` (zeros at start)"),
+    "command": ("task", "the task command (see the task); absent when its width is 0"),
+}
+"""How a robot computes each policy-observation term (the names of the tasks' policy groups)."""
+
+
+def deployment_bundle(env: Any) -> dict[str, Any]:
+    """The robot-side description of ``env``'s policy interface (see the module docstring)."""
+    from robots import g1
+
+    layout = env.observation_layout()["policy"]
+    terms = {t.name: t for t in env.task.observations.policy.terms}
+    obs_terms = []
+    for name, start, width in layout:
+        if width == 0:
+            continue
+        unit, how = OBSERVATION_TERM_DOCS.get(name, ("?", terms[name].func.__doc__ or ""))
+        obs_terms.append(
+            {
+                "name": name, "columns": [start, start + width], "unit": unit, "compute": how,
+                "scale": terms[name].scale, "training_noise": terms[name].noise,
+            }
+        )  # fmt: skip
+    limits = env.layout.joint_range_rad
+    return {
+        "format": BUNDLE_FORMAT,
+        "task": env.task.name,
+        "control": {
+            "policy_rate_hz": 1.0 / env.step_dt_s,
+            "physics_dt_s": env.physics_dt_s,
+            "decimation": env.cfg.decimation,
+            "joint_target": "target_rad[i] = default_pos_rad[i] + action_scale_rad[i] * "
+            "actions[i], tracked by a PD law tau = kp (target - q) - kd qdot clipped to "
+            "+-effort_limit_nm",
+        },
+        "joints": [
+            {
+                "name": joint.name,
+                "default_pos_rad": float(g1.STAND_JOINT_POS_RAD[i]),
+                "action_scale_rad": float(g1.ACTION_SCALE_RAD[i]),
+                "kp": float(g1.KP[i]),
+                "kd": float(g1.KD[i]),
+                "effort_limit_nm": float(g1.EFFORT_LIMIT_NM[i]),
+                "position_limits_rad": [float(limits[i, 0]), float(limits[i, 1])],
+            }
+            for i, joint in enumerate(g1.JOINTS)
+        ],  # fmt: skip
+        "observation": {
+            "width": layout[-1][1] + layout[-1][2],
+            "terms": obs_terms,
+            "history_length": env.cfg.history_length,
+            "history": "input `history` = the last history_length observations (this step's "
+            "last), concatenated oldest first; at start every slot holds the first observation",
+        },
+        "clip_actions": env.cfg.clip_actions,
+    }
+
+
 def export_motion_policy(
-    actor: A2CFActor, path: str | Path, check_samples: int = 64, tolerance: float = 1e-4
+    actor: A2CFActor,
+    path: str | Path,
+    check_samples: int = 64,
+    tolerance: float = 1e-4,
+    env: Any = None,
 ) -> dict[str, Any]:
     """Write ``actor``'s motion policy to ``path`` (ONNX) and check it against torch.
 
@@ -63,17 +140,16 @@ def export_motion_policy(
             f"ONNX export {path} differs from torch by {max_err:.3g} > {tolerance:.3g}"
         )
     description = {
-        "onnx": str(path),
+        "onnx": path.name,  # beside this file
         "inputs": {
             "obs": [policy.policy_obs_dim],
             "history": [policy.history_length * policy.policy_obs_dim],
         },
         "outputs": {"actions": [actor.num_motion_actions]},
-        "history_length": policy.history_length,
-        "joint_target": "robots.g1.STAND_JOINT_POS_RAD + robots.g1.ACTION_SCALE_RAD * actions",
         "max_abs_error": max_err,
+        **(deployment_bundle(env) if env is not None else {}),
     }
-    path.with_suffix(".json").write_text(json.dumps(description, indent=2))
+    atomic_write_json(path.with_suffix(".json"), description)
     return description
 
 

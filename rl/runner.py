@@ -528,7 +528,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
     if cfg.export_onnx:
         from rl.export import export_motion_policy
 
-        export = export_motion_policy(runner.alg.get_policy(), run_dir / POLICY_FILE)
+        export = export_motion_policy(runner.alg.get_policy(), run_dir / POLICY_FILE, env=env)
         metrics["onnx"] = export
     atomic_write_json(run_dir / METRICS_FILE, metrics)
     return TrainResult(
