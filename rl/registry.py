@@ -12,6 +12,7 @@ from typing import Any
 
 from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
+from rl.tasks.backflip import BACKFLIP
 from rl.tasks.config import TaskConfig
 from rl.tasks.stand import STAND
 from rl.tasks.walk import WALK
@@ -19,6 +20,7 @@ from rl.tasks.walk import WALK
 TASKS: dict[str, TaskConfig] = {
     STAND.name: STAND,
     WALK.name: WALK,
+    BACKFLIP.name: BACKFLIP,
 }
 """Registered tasks by name, each with its default config."""
 
