@@ -36,7 +36,13 @@ from pathlib import Path
 
 import numpy as np
 
-from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0, BoundRule, envelope_per_phase
+from optimal_control.bounds import (
+    AXIS_NAMES,
+    PAPER_ETA0,
+    BoundRule,
+    envelope_per_phase,
+    help_causes_per_phase,
+)
 from optimal_control.files import (
     atomic_folder,
     atomic_save_npz,
@@ -47,9 +53,10 @@ from optimal_control.files import (
 )
 from optimal_control.reference import Reference
 from optimal_control.wrench_qp import WrenchProfile
+from robots import g1
 
 ARTIFACT_KIND = "a2cf-mb/oracle"
-ARTIFACT_VERSION = 2  # 2: manifest.json with sizes and checksums
+ARTIFACT_VERSION = 3  # 2: manifest.json with sizes and checksums; 3: soft joint rows (da arrays)
 SUMMARY_FILE = "oracle.json"
 MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"
@@ -139,6 +146,7 @@ class OracleArtifact:
     def summary(self) -> dict:
         """The JSON summary written to ``oracle.json``."""
         num_phases = len(self.phase_names)
+        full = next((a for a in self.profiles if abs(a - 1.0) < 1e-9), None)
         sweep = {}
         for alpha in sorted(self.profiles, reverse=True):
             prof = self.profiles[alpha]
@@ -150,6 +158,18 @@ class OracleArtifact:
                 "unsolved_frames_per_phase": [
                     int(np.sum(~prof.solved[self.reference.phase == p])) for p in range(num_phases)
                 ],
+                "help_causes_per_phase": (
+                    help_causes_per_phase(
+                        self.profiles[full].wrench_w,
+                        prof.wrench_w,
+                        prof.joint_accel_error,
+                        self.reference.phase,
+                        self.phase_names,
+                        g1.JOINT_NAMES,
+                    )
+                    if full is not None
+                    else None
+                ),
                 "unaided_fraction_per_phase": [
                     float(prof.unaided[self.reference.phase == p].mean())
                     if np.any(self.reference.phase == p)
@@ -172,6 +192,9 @@ class OracleArtifact:
             "eta0_per_phase": self.eta0_dict(),
             "rule": self.rule.to_dict(),
             "novice_model": self.novice_model,
+            "help_causes": sweep[f"{self._alpha_lookup(self.rule.novice_alpha):.2f}"][
+                "help_causes_per_phase"
+            ],
             "alphas": sorted(self.profiles, reverse=True),
             "alpha_sweep": sweep,
             "reference": {
@@ -308,6 +331,7 @@ def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchP
         contact_wrench_w=arrays[f"{p}contact_wrench_w"],
         corner_forces_w=arrays[f"{p}corner_forces_w"],
         tau_nm=arrays[f"{p}tau_nm"],
+        joint_accel_error=arrays[f"{p}joint_accel_error"],
         residual=arrays[f"{p}residual"],
         solved=arrays[f"{p}solved"].astype(bool),
         unaided=arrays[f"{p}unaided"].astype(bool),
@@ -477,7 +501,8 @@ def build_artifact(
         novice_model=novice_model
         or (
             f"per-frame wrench QP along the fixed reference, joint torques limited to "
-            f"alpha = {rule.novice_alpha:g} x effort limit"
+            f"alpha = {rule.novice_alpha:g} x effort limit, joint accelerations tracked softly "
+            "(base rows exact): feasible at every frame"
         ),
         extra_summary=extra_summary or {},
         extra_arrays=extra_arrays or {},

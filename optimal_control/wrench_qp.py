@@ -23,9 +23,17 @@ torque about the *centre of mass of the pelvis body*. That is exactly what MuJoC
 makes the conversion explicit. In Pinocchio it enters through the Jacobian ``J_w`` of a point at the
 pelvis CoM with LOCAL_WORLD_ALIGNED axes (:func:`pelvis_wrench_jacobian`).
 
-**Torque limits too tight.** ``w`` acts on the pelvis only, so it cannot hold a limb whose joints
-are passive: with ``alpha = 0`` (or too small an alpha) the QP is infeasible, proxsuite says so and
-the frame is reported with ``solved = False`` and a large residual. The *upper* envelope of help is
+**Torque limits too tight: the novice model at every frame.** ``w`` acts on the pelvis only, so
+it cannot hold a limb whose joints are passive. With the hard QP
+(``soft_joint_acceleration=False``) ``alpha = 0`` (or too small an alpha) is infeasible, proxsuite
+says so and the frame is reported with ``solved = False`` and a large residual. By default a frame
+the hard QP cannot answer is solved again with the joint accelerations tracked *softly*: the QP may
+add ``da`` (29) to the reference joint
+accelerations at a cost ``joint_acceleration_weight |da|^2`` while the six base rows hold exactly,
+``ID(q, v, a + S^T da) = ...``. Where a limb lacks torque it lags (``da != 0``, reported as
+``joint_accel_error``) and ``w`` says how much pelvis help keeps the base on its path; the QP is
+feasible at every frame, for every alpha >= 0. Frames the hard QP solves keep its answer exactly
+(``da = 0``); a single soft QP with a weight high enough for that is ill-conditioned for proxsuite. The *upper* envelope of help is
 therefore not alpha = 0 but the no-contact wrench (both soles off, alpha = 1): the pelvis wrench that
 replaces the ground altogether.
 
@@ -35,7 +43,8 @@ in W = identity): the regularisation and solver tolerance leave ``|w|`` of order
 the robot can do alone, and half a newton is far below anything a learner would notice.
 
 Consecutive frames are warm-started (proxsuite ``update`` + ``solve`` with the previous primal-dual
-solution); the problem size is fixed (59 variables: 2 x 12 corner forces, 6 wrench, 29 torques).
+solution); the problem size is fixed (88 variables: 2 x 12 corner forces, 6 wrench, 29 torques,
+29 joint-acceleration errors).
 """
 
 from __future__ import annotations
@@ -57,11 +66,12 @@ NF = NUM_SOLES * CORNERS_PER_SOLE * 3
 """Number of contact-force variables (24)."""
 NW = 6
 NT = g1.NUM_JOINTS
-NX = NF + NW + NT
-"""Number of QP variables (59)."""
+NX = NF + NW + 2 * NT
+"""Number of QP variables (88): corner forces, wrench, torques, joint-acceleration errors."""
 SLICE_F = slice(0, NF)
 SLICE_W = slice(NF, NF + NW)
-SLICE_TAU = slice(NF + NW, NX)
+SLICE_TAU = slice(NF + NW, NF + NW + NT)
+SLICE_DA = slice(NF + NW + NT, NX)
 _INF = 1e20  # proxsuite treats |bound| >= 1e20 as infinite
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
@@ -82,6 +92,13 @@ class WrenchQPConfig:
     eps_abs: float = 1e-5  # proxsuite absolute tolerance on residuals [N, N m]
     max_iter: int = 1000  # proxsuite iteration cap [-]
     warm_start: bool = True  # start each frame from the previous solution [-]
+    # The novice model must answer at every frame: with soft joint rows the joint accelerations
+    # may deviate by da (cost joint_acceleration_weight |da|^2) while the base rows hold exactly,
+    # so a limb that lacks torque lags instead of making the frame infeasible, and the wrench
+    # keeps the base on its path. False: the hard QP (da = 0; infeasible where a limb lacks torque).
+    soft_joint_acceleration: bool = True  # joint accelerations tracked softly [-]
+    joint_acceleration_weight: float = 100.0  # weight of |da|^2 [1/(rad/s^2)^2, vs 1/N^2 on w]
+    lagging_tol_rad_s2: float = 0.5  # |da|_inf above this: a joint lags the reference [rad/s^2]
 
 
 @dataclass
@@ -92,9 +109,10 @@ class FrameSolution:
     contact_wrench_w: np.ndarray  # (2, 6) sole wrenches [N, N m] about each sole origin, world axes
     corner_forces_w: np.ndarray  # (2, 4, 3) corner forces [N], world axes
     tau_nm: np.ndarray  # (29,) joint torques [N m]
+    joint_accel_error: np.ndarray  # (29,) da: joint acceleration minus the reference's [rad/s^2]
     residual: float  # max |dynamics row residual| [N or N m]
     solved: bool  # proxsuite converged (False: e.g. alpha too small to hold the limbs at all)
-    unaided: bool  # |w| <= unaided_tol: the robot does this frame without help
+    unaided: bool  # |w| <= unaided_tol and no joint lags: the robot does this frame alone
     iterations: int  # proxsuite iterations
     warm_started: bool  # answered by the warm-started solve (False: by a retry)
     status: str  # proxsuite status name
@@ -110,6 +128,7 @@ class WrenchProfile:
     contact_wrench_w: np.ndarray  # (T, 2, 6) sole wrenches [N, N m], world axes, sole origins
     corner_forces_w: np.ndarray  # (T, 2, 4, 3) corner forces [N]
     tau_nm: np.ndarray  # (T, 29) joint torques [N m]
+    joint_accel_error: np.ndarray  # (T, 29) da, joint acceleration minus reference [rad/s^2]
     residual: np.ndarray  # (T,) dynamics residual [N or N m]
     solved: np.ndarray  # (T,) bool, the QP converged
     unaided: np.ndarray  # (T,) bool
@@ -136,6 +155,7 @@ class WrenchProfile:
             "solved_fraction": float(self.solved.mean()),
             "unaided_fraction": float(self.unaided.mean()),
             "max_wrench_norm": float(self.wrench_norm.max()),
+            "max_joint_accel_error_rad_s2": float(np.abs(self.joint_accel_error).max()),
             "statuses": sorted(set(self.status)),
         }
 
@@ -146,6 +166,7 @@ class WrenchProfile:
             f"{prefix}contact_wrench_w": self.contact_wrench_w,
             f"{prefix}corner_forces_w": self.corner_forces_w,
             f"{prefix}tau_nm": self.tau_nm,
+            f"{prefix}joint_accel_error": self.joint_accel_error,
             f"{prefix}residual": self.residual,
             f"{prefix}solved": self.solved,
             f"{prefix}unaided": self.unaided,
@@ -241,8 +262,9 @@ class WrenchQP:
         self._selection_t = np.zeros((NV, NT))
         self._selection_t[self._joint_v, np.arange(NT)] = 1.0
         self._pelvis_com_m = pelvis_com_offset_m(self.robot)
-        self._box_cache: dict[tuple[bool, bool, float], tuple[np.ndarray, np.ndarray]] = {}
-        self._qp: proxsuite.proxqp.dense.QP | None = None
+        self._box_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        # One warm-started problem per mode: hard joint rows (da = 0) and soft (da free).
+        self._qps: dict[bool, proxsuite.proxqp.dense.QP | None] = {False: None, True: None}
 
     def _build_hessian(self) -> np.ndarray:
         c = self.cfg
@@ -252,6 +274,7 @@ class WrenchQP:
                 np.full(3, c.force_weight),
                 np.full(3, c.torque_weight),
                 np.full(NT, c.joint_torque_reg),
+                np.full(NT, c.joint_acceleration_weight),
             ]
         )
         return 2.0 * np.diag(diag)
@@ -271,7 +294,7 @@ class WrenchQP:
 
     def reset(self) -> None:
         """Forget the warm start (the next solve initialises the QP afresh)."""
-        self._qp = None
+        self._qps = {False: None, True: None}
 
     def torque_bounds_nm(self, alpha: float | None = None) -> np.ndarray:
         """Joint torque bound (29,) [N m] for ``alpha`` (default: the config's)."""
@@ -281,10 +304,13 @@ class WrenchQP:
     def model_terms(
         self, q: np.ndarray, v: np.ndarray, a: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
-        """Equality matrix A (35, 59), right side b (35,) and sole corner offsets (world, 2x(4,3))."""
+        """Equality matrix A (35, 88), right side b (35,) and sole corner offsets (world, 2x(4,3))."""
         model, data = self.robot.model, self.data
         b = pin.rnea(model, data, q, v, a).copy()
         b[self._joint_v] += self._armature * a[self._joint_v]
+        inertia = pin.crba(model, data, q)
+        inertia = np.triu(inertia) + np.triu(inertia, 1).T  # crba fills the upper triangle
+        inertia[self._joint_v, self._joint_v] += self._armature
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         eq = np.empty((NV, NX))
@@ -301,15 +327,19 @@ class WrenchQP:
             eq[:, col : col + 3 * CORNERS_PER_SOLE] = blocks.transpose(1, 0, 2).reshape(NV, -1)
         eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data, self._pelvis_com_m).T
         eq[:, SLICE_TAU] = self._selection_t
+        # Joint accelerations a_j + da: the left side gains (M + armature)[:, joints] da.
+        eq[:, SLICE_DA] = -inertia[:, self._joint_v]
         return eq, b, offsets
 
-    def _box(self, contacts: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
-        key = (bool(contacts[0]), bool(contacts[1]), alpha)
+    def _box(self, contacts: np.ndarray, alpha: float, soft: bool) -> tuple[np.ndarray, np.ndarray]:
+        key = (bool(contacts[0]), bool(contacts[1]), alpha, soft)
         if key not in self._box_cache:
-            self._box_cache[key] = self._make_box(contacts, alpha)
+            self._box_cache[key] = self._make_box(contacts, alpha, soft)
         return self._box_cache[key]
 
-    def _make_box(self, contacts: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    def _make_box(
+        self, contacts: np.ndarray, alpha: float, soft: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
         lower = np.full(NX, -_INF)
         upper = np.full(NX, _INF)
         for s in range(NUM_SOLES):
@@ -322,9 +352,12 @@ class WrenchQP:
         tau_max = self.torque_bounds_nm(alpha)
         lower[SLICE_TAU] = -tau_max
         upper[SLICE_TAU] = tau_max
+        if not soft:
+            lower[SLICE_DA] = 0.0
+            upper[SLICE_DA] = 0.0
         return lower, upper
 
-    def _cold_solve(self, eq, b, l_box, u_box) -> proxsuite.proxqp.dense.QP:
+    def _cold_solve(self, eq, b, l_box, u_box, soft: bool) -> proxsuite.proxqp.dense.QP:
         n_in = self._friction_rows.shape[0]
         qp = proxsuite.proxqp.dense.QP(NX, NV, n_in, box_constraints=True)
         qp.settings.eps_abs = self.cfg.eps_abs
@@ -345,26 +378,15 @@ class WrenchQP:
         qp.solve()
         # Only now is there a previous result: warm-starting a QP that never solved segfaults.
         qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-        self._qp = qp
+        self._qps[soft] = qp
         return qp
 
-    def solve(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        a: np.ndarray,
-        contacts: tuple[bool, bool] | np.ndarray,
-        alpha: float | None = None,
-    ) -> FrameSolution:
-        """Solve one frame. ``contacts`` is (left, right); ``alpha`` overrides the config's."""
-        start = time.perf_counter()
-        alpha = self.cfg.alpha if alpha is None else float(alpha)
-        contacts = np.asarray(contacts, dtype=bool)
-        eq, b, offsets = self.model_terms(q, v, a)
-        l_box, u_box = self._box(contacts, alpha)
+    def _solve_mode(self, eq, b, contacts, alpha, soft: bool):
+        """Solve one frame with hard (da = 0) or soft joint rows: (qp, answered by warm start)."""
+        l_box, u_box = self._box(contacts, alpha, soft)
         qp, warm = None, False
-        if self._qp is not None and self.cfg.warm_start:
-            qp = self._qp
+        if self._qps[soft] is not None and self.cfg.warm_start:
+            qp = self._qps[soft]
             qp.update(A=eq, b=b, l_box=l_box, u_box=u_box, update_preconditioner=False)
             qp.solve()
             warm = qp.results.info.status == _SOLVED
@@ -381,7 +403,27 @@ class WrenchQP:
                 if qp.results.info.status != _SOLVED:
                     qp = None
         if qp is None:
-            qp = self._cold_solve(eq, b, l_box, u_box)
+            qp = self._cold_solve(eq, b, l_box, u_box, soft)
+        return qp, warm
+
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        a: np.ndarray,
+        contacts: tuple[bool, bool] | np.ndarray,
+        alpha: float | None = None,
+    ) -> FrameSolution:
+        """Solve one frame. ``contacts`` is (left, right); ``alpha`` overrides the config's."""
+        start = time.perf_counter()
+        alpha = self.cfg.alpha if alpha is None else float(alpha)
+        contacts = np.asarray(contacts, dtype=bool)
+        eq, b, offsets = self.model_terms(q, v, a)
+        # Hard joint rows first: where the reference is feasible the answer is exactly the
+        # least-help one. Where it is not (a limb lacks torque), the soft rows answer.
+        qp, warm = self._solve_mode(eq, b, contacts, alpha, soft=False)
+        if qp.results.info.status != _SOLVED and self.cfg.soft_joint_acceleration:
+            qp, warm = self._solve_mode(eq, b, contacts, alpha, soft=True)
         x = qp.results.x
         residual = float(np.max(np.abs(eq @ x - b)))
         corner = x[SLICE_F].reshape(NUM_SOLES, CORNERS_PER_SOLE, 3)
@@ -400,9 +442,12 @@ class WrenchQP:
             contact_wrench_w=contact_wrench,
             corner_forces_w=corner.copy(),
             tau_nm=x[SLICE_TAU].copy(),
+            joint_accel_error=x[SLICE_DA].copy(),
             residual=residual,
             solved=solved,
-            unaided=solved and bool(np.linalg.norm(wrench) <= self.cfg.unaided_tol),
+            unaided=solved
+            and bool(np.linalg.norm(wrench) <= self.cfg.unaided_tol)
+            and bool(np.abs(x[SLICE_DA]).max() <= self.cfg.lagging_tol_rad_s2),
             iterations=int(qp.results.info.iter),
             warm_started=warm,
             status=status,
@@ -427,6 +472,7 @@ class WrenchQP:
             contact_wrench_w=np.array([s.contact_wrench_w for s in sols]),
             corner_forces_w=np.array([s.corner_forces_w for s in sols]),
             tau_nm=np.array([s.tau_nm for s in sols]),
+            joint_accel_error=np.array([s.joint_accel_error for s in sols]),
             residual=np.array([s.residual for s in sols]),
             solved=np.array([s.solved for s in sols]),
             unaided=np.array([s.unaided for s in sols]),

@@ -89,7 +89,7 @@ def test_single_support_off_balance_needs_help_and_lifted_foot_carries_nothing(g
     # Standing pose on the left sole only: the CoM is between the feet, outside the left sole.
     sol = WrenchQP().solve(g1_pin.q_stand, np.zeros(NV), np.zeros(NV), (True, False))
     assert not sol.unaided
-    np.testing.assert_allclose(sol.corner_forces_w[1], 0.0, atol=1e-6)
+    np.testing.assert_allclose(sol.corner_forces_w[1], 0.0, atol=1e-5)  # proxsuite eps_abs
     # The help is mostly a roll torque (the weight is carried by the left sole).
     assert abs(sol.wrench_w[3]) > abs(sol.wrench_w[2])
 
@@ -124,10 +124,15 @@ def test_lowering_alpha_never_lowers_the_wrench(g1_pin):
 
 
 def test_passive_joints_are_reported_infeasible(g1_pin):
-    # With alpha = 0 no pelvis wrench can hold the arms and legs: flagged, not silently wrong.
-    sol = WrenchQP().solve(_squat_pose(g1_pin), np.zeros(NV), np.zeros(NV), (True, True), alpha=0)
+    # Hard joint rows, alpha = 0: no pelvis wrench can hold the arms and legs: flagged.
+    hard = WrenchQP(WrenchQPConfig(soft_joint_acceleration=False))
+    sol = hard.solve(_squat_pose(g1_pin), np.zeros(NV), np.zeros(NV), (True, True), alpha=0)
     assert not sol.solved and not sol.unaided
     assert sol.residual > 1.0
+    # The novice model (soft joint rows) answers: the limbs lag, the base rows hold exactly.
+    sol = WrenchQP().solve(_squat_pose(g1_pin), np.zeros(NV), np.zeros(NV), (True, True), alpha=0)
+    assert sol.solved and not sol.unaided and sol.residual < 1e-4
+    assert np.abs(sol.joint_accel_error).max() > 1.0
 
 
 def test_sideways_acceleration_on_ice_is_flagged_with_the_expected_wrench(g1_pin):
@@ -173,4 +178,4 @@ def test_warm_start_gives_the_cold_answer(g1_pin, rng):
 def test_bad_config_is_rejected():
     with pytest.raises(ValueError, match="alpha"):
         WrenchQP(WrenchQPConfig(alpha=-0.1))
-    assert NX == 59
+    assert NX == 88

@@ -44,7 +44,11 @@ from optimal_control.backflip.solve import (
     save_solution,
     solve_backflip_to,
 )
-from optimal_control.backflip.trajectory import SampledFlip, sample_solution
+from optimal_control.backflip.trajectory import (
+    SampledFlip,
+    fine_grid_limit_report,
+    sample_solution,
+)
 from optimal_control.backflip.transcription import Solution
 from optimal_control.files import atomic_write_json, atomic_write_text
 from optimal_control.oracle import OracleConfig, resolve_output, solve_reference_oracle
@@ -274,7 +278,16 @@ def solve_backflip(
     solver["wall_time_s"] = solve_wall
     solver["warm_start_from"] = warm_source or None
     solver["cache_note"] = cache_note
+    limits = fine_grid_limit_report(sol, grid, model)
+    produced_by = {
+        "solve": "warm" if result.stats_dict().get("warm_started") else "cold",
+        "warm_start_from": warm_source or None,
+        "ipopt_iterations": result.stats_dict().get("total_iterations"),
+        "phase_durations_s": [float(d) for d in sol.durations_s],
+    }
     summary = {
+        "produced_by": produced_by,
+        "fine_grid_limits": limits,
         "to_config": dataclasses.asdict(cfg),
         "reduction": {
             "motion": "left/right symmetric, sagittal (base y = roll = yaw = 0); full 3-D dynamics",

@@ -110,3 +110,45 @@ def sample_solution(sol: Solution, grid: Grid, model: SagittalModel, rate_hz: fl
         wrench_w=wrench_body_to_world_com(q, wrench_b, lever),
         dt_s=dt,
     )
+
+
+def fine_grid_limit_report(
+    sol: Solution, grid: Grid, model: SagittalModel, rate_hz: float = 1000.0
+) -> dict:
+    """Largest effort, speed and position ratio to the URDF limits on a fine grid (JSON-ready).
+
+    The solution is sampled at ``rate_hz`` with the collocation's own interpolant
+    (:func:`sample_solution`, torques from the inverse dynamics of each sample), so excursions
+    *between* knots count. Ratios: |tau| / effort limit, |qdot| / URDF speed limit, and for
+    positions the excursion beyond the URDF range as a share of the range (0 = within limits),
+    each with the joint and time [s] of the worst sample.
+    """
+    flip = sample_solution(sol, grid, model, rate_hz)
+    robot = model.robot
+    effort = np.abs(flip.tau_nm) / model.effort_limit_nm
+    speed = np.abs(flip.v[:, robot.joint_v_index]) / robot.velocity_limit_rad_s
+    joints = flip.q[:, robot.joint_q_index]
+    span = robot.position_upper_rad - robot.position_lower_rad
+    beyond = np.maximum(robot.position_lower_rad - joints, joints - robot.position_upper_rad)
+    position = np.maximum(beyond, 0.0) / span
+    from robots import g1
+
+    def worst(ratio: np.ndarray) -> dict:
+        t, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        return {
+            "max_ratio": float(ratio[t, j]),
+            "joint": g1.JOINT_NAMES[j],
+            "time_s": float(flip.time_s[t]),
+            "phase": PHASE_NAMES[int(flip.phase[t])],
+        }
+
+    return {
+        "rate_hz": rate_hz,
+        "samples": int(flip.time_s.shape[0]),
+        "effort": worst(effort),
+        "speed": worst(speed),
+        "position_beyond_range": worst(position),
+        "pelvis_wrench_max_norm_force_n": float(np.linalg.norm(flip.wrench_w[:, :3], axis=1).max()),
+        "within_limits": bool(effort.max() <= 1.0 + 1e-6 and speed.max() <= 1.0 + 1e-6)
+        and bool(position.max() <= 1e-6),
+    }
