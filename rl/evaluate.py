@@ -37,6 +37,7 @@ class EvalConfig:
     seed: int = 1  # env seed (differs from training's default 0) [-]
     use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
+    sim2sim: bool = False  # also roll the ONNX policy out in the second simulator (rl.sim2sim)
 
     def __post_init__(self) -> None:
         if self.num_envs < 1:
@@ -125,6 +126,12 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     }
     if evaluator is not None:
         result["task_metrics"] = evaluator.finish(run_dir)
+    if cfg.sim2sim:
+        from rl.sim2sim import Sim2SimConfig, run_sim2sim
+
+        result["sim2sim"] = run_sim2sim(
+            run_dir, env.task, num_steps, Sim2SimConfig(num_envs=cfg.num_envs, seed=cfg.seed)
+        )
     if cfg.video:
         result["video"] = str(
             _render_qpos(np.asarray(qpos_env0), env.step_dt_s, cfg.video, train_cfg.task)

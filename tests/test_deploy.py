@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import mujoco
 import numpy as np
 import torch
 
@@ -84,3 +85,14 @@ def test_bundle_rebuilds_the_observation_and_drives_the_onnx_policy(tmp_path):
         obs, _, dones, _ = env.step(torch.cat([torch.from_numpy(actions), torch.zeros(2, 6)], -1))
         assert not dones.any()
         last_action = actions
+
+    # The same bundle drives the second simulator (1 kHz, meshes, explicit PD), scored by the task.
+    from rl.sim2sim import Sim2SimConfig, build_sim2sim_model, run_sim2sim
+
+    model = build_sim2sim_model(Sim2SimConfig())
+    assert model.opt.timestep == 0.001 and model.nu == 0 and model.nmesh > 0
+    assert model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    other = run_sim2sim(run, STAND, num_steps=10, cfg=Sim2SimConfig(num_envs=2))
+    assert other["decimation"] == 20 and other["survival_fraction"] == 1.0
+    # 10 steps of a near-neutral policy: per-step rewards like the training physics' (alive ~0.02)
+    assert 0.5 * 10 * 0.02 < other["mean_return"] < 2.0 * 10 * 0.07

@@ -25,5 +25,11 @@ def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluate.evaluate` and print its result."""
     from rl.evaluate import EvalConfig, evaluate
 
-    print(json.dumps(evaluate(args.run_dir, config_from_args(EvalConfig, args)), indent=2))
+    result = evaluate(args.run_dir, config_from_args(EvalConfig, args))
+    print(json.dumps(result, indent=2))
+    if "sim2sim" in result:
+        other = result["sim2sim"]
+        print(f"{'metric':<28} {'training physics':>17} {'sim2sim':>10}")
+        for key in ("survival_fraction", "mean_return", "mean_episode_length_steps"):
+            print(f"{key:<28} {result[key]:>17.3f} {other[key]:>10.3f}")
     return 0
