@@ -234,8 +234,9 @@ def tile_boxes(
                 boxes.append(_ground_box(cx, cy + sign * m, a0, w / 2, top, tile))
         return boxes
     if kind == "stairs_down":  # nested boxes, the largest lowest; the platform on top
+        # Tread edges at p + k w as for stairs_up; the lowest box fills the tile.
         for k in range(steps + 1):
-            a = half - k * w if k < steps else p
+            a = half if k == 0 else p + (steps - k) * w
             boxes.append(_ground_box(cx, cy, a, a, (k + 1) * h, tile))
         return boxes
     raise ValueError(f"unknown tile type '{kind}'; known: {TILE_TYPES}")
