@@ -14,6 +14,7 @@ from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
 from rl.tasks.backflip import BACKFLIP
 from rl.tasks.config import TaskConfig
+from rl.tasks.dance import DANCE
 from rl.tasks.stand import STAND
 from rl.tasks.walk import WALK
 
@@ -21,6 +22,7 @@ TASKS: dict[str, TaskConfig] = {
     STAND.name: STAND,
     WALK.name: WALK,
     BACKFLIP.name: BACKFLIP,
+    DANCE.name: DANCE,
 }
 """Registered tasks by name, each with its default config."""
 
