@@ -3,7 +3,7 @@
 
 Each episode starts on a frame drawn uniformly along one clip (drawn uniformly among the task's
 clips: the built-in choreography by default, user CSV / NPZ clips with ``dance_task(clips)`` or
-``--task-commands-sources PATH ...``), the robot put on that frame's pose and velocity and onto the
+the run override ``TrainConfig(task_overrides={"commands.sources": [PATH, ...]})``), the robot put on that frame's pose and velocity and onto the
 floor (retargeted clips hover or sink a few cm). Rewards are the paper's table: base displacement
 ``exp(-2500 |dp - dp_cmd|^2)`` 10, base step rotation ``exp(-100 |dq - dq_cmd|^2)`` 5, joints
 ``exp(-0.25 |q - q_cmd|^2)`` 20, feet slide -1, action rate -0.01, joint acceleration -2.5e-7,
