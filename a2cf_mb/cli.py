@@ -21,9 +21,11 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.eval",
     "a2cf_mb.commands.compare",
     "a2cf_mb.commands.list_tasks",
+    "a2cf_mb.commands.demo",
     "a2cf_mb.commands.solve_walk",
     "a2cf_mb.commands.solve_dance",
     "a2cf_mb.commands.solve_backflip",
+    "a2cf_mb.commands.coach",
 )
 
 
