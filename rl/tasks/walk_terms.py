@@ -7,6 +7,8 @@ rate [rad/s] (:class:`rl.tasks.walk.VelocityCommandConfig`).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import torch
 
 from rl.envs.state import EnvState
@@ -54,8 +56,10 @@ def stand_still(s: EnvState, max_command: float = 0.1) -> torch.Tensor:
     return standing * (s.joint_pos_rad - s.default_joint_pos_rad).norm(dim=-1)
 
 
+@lru_cache(maxsize=8)
 def scan_offsets_b(size_m: tuple[float, float], resolution_m: float) -> torch.Tensor:
-    """Grid points (P, 2) [m] of a ``size_m`` = (length x, width y) scan centred on the pelvis."""
+    """Grid points (P, 2) [m] of a ``size_m`` = (length x, width y) scan centred on the pelvis
+    (cached per size: treat the result as read-only)."""
     nx = int(round(size_m[0] / resolution_m)) + 1
     ny = int(round(size_m[1] / resolution_m)) + 1
     xs = torch.linspace(-size_m[0] / 2, size_m[0] / 2, nx)
