@@ -93,3 +93,15 @@ def test_every_flag_of_every_command_has_help() -> None:
                  "--task-episode-length-s", "--task-scene-link-collisions", "--ppo-learning-rate",
                  "--task-reward-weight", "--task-term-param"):  # fmt: skip
         assert ("train", flag) in seen, flag
+
+
+def test_cli_reference_in_docs_is_current() -> None:
+    """docs/cli.md is the parser's own help; regenerate it with the command in its header."""
+    from pathlib import Path
+
+    from a2cf_mb.cli_reference import render
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
+    assert path.read_text() == render(), (
+        "docs/cli.md is stale: python -m a2cf_mb.cli_reference > docs/cli.md"
+    )
