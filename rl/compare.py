@@ -1,9 +1,9 @@
 """Comparison of training runs (``a2cf-mb compare RUN...``): one figure and one table.
 
 Per run folder it reads ``config.json`` (task, mode, sizes, reward weights), ``metrics.json``
-(per-iteration rows: env steps, mean step reward, applied force, bound), ``curriculum.jsonl``
-(bounds per iteration, assist switch-off) and the TensorBoard events (``Curriculum/terrain_level``,
-``Reward/<tracking term>``, ``Episode/skill_progress``), and ``eval.json`` when an evaluation ran.
+(per-iteration rows: env steps, mean step reward, applied force, bound norm, assist switch), the
+TensorBoard events (``Curriculum/terrain_level``, ``Reward/<tracking term>``) and ``eval.json``
+when an evaluation ran.
 
 Figure (like the paper's walking figure): terrain level (skill progress for tasks without a
 terrain curriculum), force bound |eta|, total step reward and the raw velocity-tracking reward
