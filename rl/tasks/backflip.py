@@ -132,7 +132,11 @@ def backflip_task(artifact_path: str | Path | None = None) -> TaskConfig:
     if artifact_path is not None:
         source = str(artifact_path)
         bt.desired_joint_poses(source)  # fail here, with the artifact's message, not mid-run
-    poses = "built-in poses" if source == bt.BUILTIN_POSES else f"oracle artifact {source}"
+    poses = (
+        "built-in unless the pose_deviation term's source names an oracle artifact"
+        if source == bt.BUILTIN_POSES
+        else f"oracle artifact {source}"
+    )
     return dataclasses.replace(
         _BACKFLIP,
         description=f"{_BACKFLIP.description}; desired joint poses: {poses}",
