@@ -253,3 +253,24 @@ def test_two_training_iterations_and_eval_with_task_metrics(tmp_path) -> None:
     assert metrics["reached_phase_fraction"]["stand"] == 1.0
     assert 0.0 <= metrics["success_rate"] <= 1.0
     assert (result.run_dir / "eval_backflip.png").is_file()
+
+
+def test_env_state_round_trip_continues_the_fsm_exactly() -> None:
+    task = dataclasses.replace(BACKFLIP, commands=bt.StartCommandConfig(delay_range_s=(0.0, 0.1)))
+    first, second = make_env(task, 3, num_threads=1), make_env(task, 3, num_threads=1, seed=7)
+    try:
+        gen = torch.Generator().manual_seed(0)
+        for _ in range(8):
+            first.step(0.3 * torch.randn(3, 35, generator=gen))
+        second.load_state_dict(first.state_dict())
+        for _ in range(4):
+            actions = 0.3 * torch.randn(3, 35, generator=gen)
+            obs_a, rew_a, done_a, _ = first.step(actions)
+            obs_b, rew_b, done_b, _ = second.step(actions)
+            assert torch.equal(rew_a, rew_b) and torch.equal(done_a, done_b)
+            assert torch.equal(obs_a["critic"], obs_b["critic"])
+            assert torch.equal(first.phase, second.phase)
+        assert (first.phase_machine.max_phase >= bt.CROUCH).all()  # the FSM did move
+    finally:
+        first.close()
+        second.close()
