@@ -56,7 +56,7 @@ from optimal_control.wrench_qp import WrenchProfile
 from robots import g1
 
 ARTIFACT_KIND = "a2cf-mb/oracle"
-ARTIFACT_VERSION = 3  # 2: manifest.json with sizes and checksums; 3: soft joint rows (da arrays)
+ARTIFACT_VERSION = 4  # 2: manifest.json with sizes and checksums; 4: soft joint rows (missing_torque_nm)
 SUMMARY_FILE = "oracle.json"
 MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"
@@ -162,7 +162,7 @@ class OracleArtifact:
                     help_causes_per_phase(
                         self.profiles[full].wrench_w,
                         prof.wrench_w,
-                        prof.joint_accel_error,
+                        prof.missing_torque_nm,
                         self.reference.phase,
                         self.phase_names,
                         g1.JOINT_NAMES,
@@ -331,7 +331,7 @@ def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchP
         contact_wrench_w=arrays[f"{p}contact_wrench_w"],
         corner_forces_w=arrays[f"{p}corner_forces_w"],
         tau_nm=arrays[f"{p}tau_nm"],
-        joint_accel_error=arrays[f"{p}joint_accel_error"],
+        missing_torque_nm=arrays[f"{p}missing_torque_nm"],
         residual=arrays[f"{p}residual"],
         solved=arrays[f"{p}solved"].astype(bool),
         unaided=arrays[f"{p}unaided"].astype(bool),

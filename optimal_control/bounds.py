@@ -126,11 +126,11 @@ def envelope_per_phase(
 def help_causes_per_phase(
     wrench_full_w: np.ndarray,
     wrench_novice_w: np.ndarray,
-    joint_accel_error: np.ndarray,
+    missing_torque_nm: np.ndarray,
     phase: np.ndarray,
     phase_names: tuple[str, ...],
     joint_names: tuple[str, ...],
-    lagging_tol_rad_s2: float = 0.5,
+    lagging_tol_nm: float = 0.5,
 ) -> dict[str, dict]:
     """Per phase: what share of the novice's help comes from which cause (JSON-ready).
 
@@ -138,19 +138,19 @@ def help_causes_per_phase(
         wrench_full_w: (T, 6) wrench at alpha = 1 [N, N m]: what the motion needs beyond what the
             contacts can give (flight, friction, centre of pressure), at full strength.
         wrench_novice_w: (T, 6) wrench of the novice [N, N m].
-        joint_accel_error: (T, 29) the novice's joint-acceleration lag [rad/s^2]: where a limb
+        missing_torque_nm: (T, 29) torque the novice's joints lack [N m]: where a limb
             lacks torque the pelvis cannot help, the limb lags instead.
         phase: (T,) phase ids; phase_names, joint_names: labels.
-        lagging_tol_rad_s2: |da| above this counts as lagging [rad/s^2].
+        lagging_tol_nm: |eps| above this counts as lagging [N m].
 
     Returns per phase name: ``motion_share`` (sum |w_full| / sum |w_novice|, capped at 1, the
     help the motion itself asks for), ``torque_deficit_share`` (1 - motion_share: help because the
     novice's joints are weaker), ``mean_help_norm`` [N, N m mixed], ``lagging_frame_share`` (frames
-    where a joint lags) and ``most_lagging_joint`` with its largest |da| [rad/s^2].
+    where a joint lacks torque) and ``most_lagging_joint`` with its largest missing torque [N m].
     """
     full = np.linalg.norm(np.asarray(wrench_full_w, dtype=float), axis=1)
     novice = np.linalg.norm(np.asarray(wrench_novice_w, dtype=float), axis=1)
-    lag = np.abs(np.asarray(joint_accel_error, dtype=float))
+    lag = np.abs(np.asarray(missing_torque_nm, dtype=float))
     out = {}
     for p, name in enumerate(phase_names):
         rows = np.asarray(phase) == p
@@ -165,8 +165,8 @@ def help_causes_per_phase(
             "motion_share": motion,
             "torque_deficit_share": 1.0 - motion,
             "mean_help_norm": float(novice[rows].mean()),
-            "lagging_frame_share": float(np.mean(lag[rows].max(axis=1) > lagging_tol_rad_s2)),
+            "lagging_frame_share": float(np.mean(lag[rows].max(axis=1) > lagging_tol_nm)),
             "most_lagging_joint": joint_names[j],
-            "max_joint_accel_error_rad_s2": float(worst[j]),
+            "max_missing_torque_nm": float(worst[j]),
         }
     return out

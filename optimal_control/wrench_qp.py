@@ -24,16 +24,19 @@ makes the conversion explicit. In Pinocchio it enters through the Jacobian ``J_w
 pelvis CoM with LOCAL_WORLD_ALIGNED axes (:func:`pelvis_wrench_jacobian`).
 
 **Torque limits too tight: the novice model at every frame.** ``w`` acts on the pelvis only, so
-it cannot hold a limb whose joints are passive. With the hard QP
-(``soft_joint_acceleration=False``) ``alpha = 0`` (or too small an alpha) is infeasible, proxsuite
-says so and the frame is reported with ``solved = False`` and a large residual. By default a frame
-the hard QP cannot answer is solved again with the joint accelerations tracked *softly*: the QP may
-add ``da`` (29) to the reference joint
-accelerations at a cost ``joint_acceleration_weight |da|^2`` while the six base rows hold exactly,
-``ID(q, v, a + S^T da) = ...``. Where a limb lacks torque it lags (``da != 0``, reported as
-``joint_accel_error``) and ``w`` says how much pelvis help keeps the base on its path; the QP is
-feasible at every frame, for every alpha >= 0. Frames the hard QP solves keep its answer exactly
-(``da = 0``); a single soft QP with a weight high enough for that is ill-conditioned for proxsuite. The *upper* envelope of help is
+it cannot hold a limb whose joints are passive. With the hard QP (``soft_joint_rows=False``)
+``alpha = 0`` (or too small an alpha) is infeasible, proxsuite says so and the frame is reported
+with ``solved = False`` and a large residual. By default the 29 joint rows are *soft*: each may
+miss a torque ``eps`` (``missing_torque_nm``) at a cost ``missing_torque_weight |eps|^2`` (100 per
+(N m)^2 against 1 per N^2 on ``w``, so help is preferred wherever help can do the job), while the
+six base rows hold exactly. Where a limb lacks torque it falls behind the reference (``eps != 0``:
+the torque it would need beyond ``alpha tau_max``; its joint acceleration lags by about
+``eps / M_jj``) and ``w`` says how much pelvis help keeps the base on its path; the QP is feasible
+at every frame for every alpha >= 0. Where the hard QP is feasible and no torque limit binds,
+``eps`` only trades against the 1e-4 torque regularisation (|eps| ~ 1e-6 |tau|), so the answer is
+the hard one. (Soft joint *accelerations*, ``da`` with the column ``-M[:, joints]``, are the
+same model, but the wrists' small inertia makes that QP ill-conditioned: proxsuite returned false
+infeasibility certificates and took ~170 ms per backflip frame.) The *upper* envelope of help is
 therefore not alpha = 0 but the no-contact wrench (both soles off, alpha = 1): the pelvis wrench that
 replaces the ground altogether.
 
@@ -67,11 +70,11 @@ NF = NUM_SOLES * CORNERS_PER_SOLE * 3
 NW = 6
 NT = g1.NUM_JOINTS
 NX = NF + NW + 2 * NT
-"""Number of QP variables (88): corner forces, wrench, torques, joint-acceleration errors."""
+"""Number of QP variables (88): corner forces, wrench, torques, missing joint torques."""
 SLICE_F = slice(0, NF)
 SLICE_W = slice(NF, NF + NW)
 SLICE_TAU = slice(NF + NW, NF + NW + NT)
-SLICE_DA = slice(NF + NW + NT, NX)
+SLICE_EPS = slice(NF + NW + NT, NX)
 _INF = 1e20  # proxsuite treats |bound| >= 1e20 as infinite
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 
@@ -92,13 +95,13 @@ class WrenchQPConfig:
     eps_abs: float = 1e-5  # proxsuite absolute tolerance on residuals [N, N m]
     max_iter: int = 1000  # proxsuite iteration cap [-]
     warm_start: bool = True  # start each frame from the previous solution [-]
-    # The novice model must answer at every frame: with soft joint rows the joint accelerations
-    # may deviate by da (cost joint_acceleration_weight |da|^2) while the base rows hold exactly,
-    # so a limb that lacks torque lags instead of making the frame infeasible, and the wrench
-    # keeps the base on its path. False: the hard QP (da = 0; infeasible where a limb lacks torque).
-    soft_joint_acceleration: bool = True  # joint accelerations tracked softly [-]
-    joint_acceleration_weight: float = 100.0  # weight of |da|^2 [1/(rad/s^2)^2, vs 1/N^2 on w]
-    lagging_tol_rad_s2: float = 0.5  # |da|_inf above this: a joint lags the reference [rad/s^2]
+    # The novice model must answer at every frame: with soft joint rows a joint may miss torque
+    # eps (cost missing_torque_weight |eps|^2) while the six base rows hold exactly, so a limb
+    # that lacks torque falls behind instead of making the frame infeasible, and the wrench keeps
+    # the base on its path. False: the hard QP (eps = 0; infeasible where a limb lacks torque).
+    soft_joint_rows: bool = True  # joint rows soft (missing torque allowed), base rows exact [-]
+    missing_torque_weight: float = 100.0  # weight of |eps|^2 [1/(N m)^2, vs 1/N^2 on w]
+    lagging_tol_nm: float = 0.5  # |eps|_inf above this: a joint lacks torque, it lags [N m]
 
 
 @dataclass
@@ -109,7 +112,7 @@ class FrameSolution:
     contact_wrench_w: np.ndarray  # (2, 6) sole wrenches [N, N m] about each sole origin, world axes
     corner_forces_w: np.ndarray  # (2, 4, 3) corner forces [N], world axes
     tau_nm: np.ndarray  # (29,) joint torques [N m]
-    joint_accel_error: np.ndarray  # (29,) da: joint acceleration minus the reference's [rad/s^2]
+    missing_torque_nm: np.ndarray  # (29,) eps: torque the joints lack to follow [N m]
     residual: float  # max |dynamics row residual| [N or N m]
     solved: bool  # proxsuite converged (False: e.g. alpha too small to hold the limbs at all)
     unaided: bool  # |w| <= unaided_tol and no joint lags: the robot does this frame alone
@@ -128,7 +131,7 @@ class WrenchProfile:
     contact_wrench_w: np.ndarray  # (T, 2, 6) sole wrenches [N, N m], world axes, sole origins
     corner_forces_w: np.ndarray  # (T, 2, 4, 3) corner forces [N]
     tau_nm: np.ndarray  # (T, 29) joint torques [N m]
-    joint_accel_error: np.ndarray  # (T, 29) da, joint acceleration minus reference [rad/s^2]
+    missing_torque_nm: np.ndarray  # (T, 29) eps: torque the joints lack to follow [N m]
     residual: np.ndarray  # (T,) dynamics residual [N or N m]
     solved: np.ndarray  # (T,) bool, the QP converged
     unaided: np.ndarray  # (T,) bool
@@ -155,7 +158,7 @@ class WrenchProfile:
             "solved_fraction": float(self.solved.mean()),
             "unaided_fraction": float(self.unaided.mean()),
             "max_wrench_norm": float(self.wrench_norm.max()),
-            "max_joint_accel_error_rad_s2": float(np.abs(self.joint_accel_error).max()),
+            "max_missing_torque_nm": float(np.abs(self.missing_torque_nm).max()),
             "statuses": sorted(set(self.status)),
         }
 
@@ -166,7 +169,7 @@ class WrenchProfile:
             f"{prefix}contact_wrench_w": self.contact_wrench_w,
             f"{prefix}corner_forces_w": self.corner_forces_w,
             f"{prefix}tau_nm": self.tau_nm,
-            f"{prefix}joint_accel_error": self.joint_accel_error,
+            f"{prefix}missing_torque_nm": self.missing_torque_nm,
             f"{prefix}residual": self.residual,
             f"{prefix}solved": self.solved,
             f"{prefix}unaided": self.unaided,
@@ -263,7 +266,7 @@ class WrenchQP:
         self._selection_t[self._joint_v, np.arange(NT)] = 1.0
         self._pelvis_com_m = pelvis_com_offset_m(self.robot)
         self._box_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-        # One warm-started problem per mode: hard joint rows (da = 0) and soft (da free).
+        # One warm-started problem per mode: hard joint rows (eps = 0) and soft (eps free).
         self._qps: dict[bool, proxsuite.proxqp.dense.QP | None] = {False: None, True: None}
 
     def _build_hessian(self) -> np.ndarray:
@@ -274,7 +277,7 @@ class WrenchQP:
                 np.full(3, c.force_weight),
                 np.full(3, c.torque_weight),
                 np.full(NT, c.joint_torque_reg),
-                np.full(NT, c.joint_acceleration_weight),
+                np.full(NT, c.missing_torque_weight),
             ]
         )
         return 2.0 * np.diag(diag)
@@ -308,9 +311,6 @@ class WrenchQP:
         model, data = self.robot.model, self.data
         b = pin.rnea(model, data, q, v, a).copy()
         b[self._joint_v] += self._armature * a[self._joint_v]
-        inertia = pin.crba(model, data, q)
-        inertia = np.triu(inertia) + np.triu(inertia, 1).T  # crba fills the upper triangle
-        inertia[self._joint_v, self._joint_v] += self._armature
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         eq = np.empty((NV, NX))
@@ -327,8 +327,8 @@ class WrenchQP:
             eq[:, col : col + 3 * CORNERS_PER_SOLE] = blocks.transpose(1, 0, 2).reshape(NV, -1)
         eq[:, SLICE_W] = pelvis_wrench_jacobian(self.robot, data, self._pelvis_com_m).T
         eq[:, SLICE_TAU] = self._selection_t
-        # Joint accelerations a_j + da: the left side gains (M + armature)[:, joints] da.
-        eq[:, SLICE_DA] = -inertia[:, self._joint_v]
+        # Missing joint torque eps: the joint rows read tau + eps + ... = ID; base rows untouched.
+        eq[:, SLICE_EPS] = self._selection_t
         return eq, b, offsets
 
     def _box(self, contacts: np.ndarray, alpha: float, soft: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -353,8 +353,8 @@ class WrenchQP:
         lower[SLICE_TAU] = -tau_max
         upper[SLICE_TAU] = tau_max
         if not soft:
-            lower[SLICE_DA] = 0.0
-            upper[SLICE_DA] = 0.0
+            lower[SLICE_EPS] = 0.0
+            upper[SLICE_EPS] = 0.0
         return lower, upper
 
     def _cold_solve(self, eq, b, l_box, u_box, soft: bool) -> proxsuite.proxqp.dense.QP:
@@ -381,8 +381,11 @@ class WrenchQP:
         self._qps[soft] = qp
         return qp
 
-    def _solve_mode(self, eq, b, contacts, alpha, soft: bool):
-        """Solve one frame with hard (da = 0) or soft joint rows: (qp, answered by warm start)."""
+    def _solve_mode(self, eq, b, contacts, alpha, soft: bool, retry: bool = True):
+        """Solve one frame with hard (eps = 0) or soft joint rows: (qp, answered by warm start).
+
+        ``retry``: on failure retry from the equality-constrained guess, then from scratch.
+        """
         l_box, u_box = self._box(contacts, alpha, soft)
         qp, warm = None, False
         if self._qps[soft] is not None and self.cfg.warm_start:
@@ -390,6 +393,8 @@ class WrenchQP:
             qp.update(A=eq, b=b, l_box=l_box, u_box=u_box, update_preconditioner=False)
             qp.solve()
             warm = qp.results.info.status == _SOLVED
+            if not warm and not retry:
+                return qp, warm
             if not warm:
                 # A warm start sometimes stops on a false infeasibility certificate. Retry on the
                 # same problem from the equality-constrained guess (cheap), then from scratch.
@@ -421,9 +426,7 @@ class WrenchQP:
         eq, b, offsets = self.model_terms(q, v, a)
         # Hard joint rows first: where the reference is feasible the answer is exactly the
         # least-help one. Where it is not (a limb lacks torque), the soft rows answer.
-        qp, warm = self._solve_mode(eq, b, contacts, alpha, soft=False)
-        if qp.results.info.status != _SOLVED and self.cfg.soft_joint_acceleration:
-            qp, warm = self._solve_mode(eq, b, contacts, alpha, soft=True)
+        qp, warm = self._solve_mode(eq, b, contacts, alpha, soft=self.cfg.soft_joint_rows)
         x = qp.results.x
         residual = float(np.max(np.abs(eq @ x - b)))
         corner = x[SLICE_F].reshape(NUM_SOLES, CORNERS_PER_SOLE, 3)
@@ -442,12 +445,12 @@ class WrenchQP:
             contact_wrench_w=contact_wrench,
             corner_forces_w=corner.copy(),
             tau_nm=x[SLICE_TAU].copy(),
-            joint_accel_error=x[SLICE_DA].copy(),
+            missing_torque_nm=x[SLICE_EPS].copy(),
             residual=residual,
             solved=solved,
             unaided=solved
             and bool(np.linalg.norm(wrench) <= self.cfg.unaided_tol)
-            and bool(np.abs(x[SLICE_DA]).max() <= self.cfg.lagging_tol_rad_s2),
+            and bool(np.abs(x[SLICE_EPS]).max() <= self.cfg.lagging_tol_nm),
             iterations=int(qp.results.info.iter),
             warm_started=warm,
             status=status,
@@ -472,7 +475,7 @@ class WrenchQP:
             contact_wrench_w=np.array([s.contact_wrench_w for s in sols]),
             corner_forces_w=np.array([s.corner_forces_w for s in sols]),
             tau_nm=np.array([s.tau_nm for s in sols]),
-            joint_accel_error=np.array([s.joint_accel_error for s in sols]),
+            missing_torque_nm=np.array([s.missing_torque_nm for s in sols]),
             residual=np.array([s.residual for s in sols]),
             solved=np.array([s.solved for s in sols]),
             unaided=np.array([s.unaided for s in sols]),

@@ -125,14 +125,14 @@ def test_lowering_alpha_never_lowers_the_wrench(g1_pin):
 
 def test_passive_joints_are_reported_infeasible(g1_pin):
     # Hard joint rows, alpha = 0: no pelvis wrench can hold the arms and legs: flagged.
-    hard = WrenchQP(WrenchQPConfig(soft_joint_acceleration=False))
+    hard = WrenchQP(WrenchQPConfig(soft_joint_rows=False))
     sol = hard.solve(_squat_pose(g1_pin), np.zeros(NV), np.zeros(NV), (True, True), alpha=0)
     assert not sol.solved and not sol.unaided
     assert sol.residual > 1.0
     # The novice model (soft joint rows) answers: the limbs lag, the base rows hold exactly.
     sol = WrenchQP().solve(_squat_pose(g1_pin), np.zeros(NV), np.zeros(NV), (True, True), alpha=0)
     assert sol.solved and not sol.unaided and sol.residual < 1e-4
-    assert np.abs(sol.joint_accel_error).max() > 1.0
+    assert np.abs(sol.missing_torque_nm).max() > 1.0
 
 
 def test_sideways_acceleration_on_ice_is_flagged_with_the_expected_wrench(g1_pin):
