@@ -56,7 +56,7 @@ from optimal_control.wrench_qp import WrenchProfile
 from robots import g1
 
 ARTIFACT_KIND = "a2cf-mb/oracle"
-ARTIFACT_VERSION = 4  # 2: manifest.json with sizes and checksums; 4: soft joint rows (missing_torque_nm)
+ARTIFACT_VERSION = 4  # 2: manifest with checksums; 4: soft joint rows (missing_torque_nm)
 SUMMARY_FILE = "oracle.json"
 MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"

@@ -73,7 +73,7 @@ def test_help_causes_per_phase(g1_pin):
     causes = art.summary()["help_causes"]
     assert causes["squat"]["torque_deficit_share"] > 0.9
     assert causes["flying"]["motion_share"] > 0.5
-    assert causes["squat"]["lagging_frame_share"] > 0.0  # at 0.05 x the torque the knees lack torque
+    assert causes["squat"]["lagging_frame_share"] > 0.0  # at 0.05 x tau_max the knees lack torque
     assert art.eta0[0, 2] > BoundRule().floor_force_n  # the weak squat gets help, not the floor
 
 
