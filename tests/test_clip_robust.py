@@ -109,3 +109,17 @@ def test_implausible_clips_are_refused(tmp_path, walk_ref):
     cfg = ClipConfig(ground_to_lowest_sole=False)
     with pytest.raises(ClipError, match="no sole in contact"):
         load_motion_clip_with_report(tmp_path / "flying.csv", cfg)
+
+
+def test_plausibility_report_is_stored_in_the_artifact(retargeted_csv, tmp_path):
+    from optimal_control.artifact import OracleArtifact
+    from optimal_control.oracle import OracleConfig, solve_dance
+
+    cfg = OracleConfig(alphas=(1.0, 0.5), video=False, progress=False, out=str(tmp_path / "a"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ClipPlausibilityWarning)
+        _, folder = solve_dance(cfg=cfg, clip=str(retargeted_csv), clip_cfg=ClipConfig())
+    report = OracleArtifact.load(folder).extra_summary["clip_plausibility"]
+    assert report["no_contact_share"] < 0.10
+    assert 0.0 <= report["unaided_share_alpha_1"] <= 1.0
+    assert report["largest_base_jump_m"] > 0.0 and "problems" in report

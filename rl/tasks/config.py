@@ -120,7 +120,9 @@ class TaskConfig:
     )  # phase machine config (has names, build)
     skill: Any = field(default_factory=SurvivalSkillConfig)  # skill-progress config (has build)
     less_assist_weight: float = 1.0  # weight of the less-assist reward once switched on [-]
-    evaluation: Any = None  # task-specific eval config (build(env) -> evaluator); None: generic eval
+    evaluation: Any = (
+        None  # task-specific eval config (build(env) -> evaluator); None: generic eval
+    )
 
     def __post_init__(self) -> None:
         check_unique("reward", self.rewards)
