@@ -84,7 +84,7 @@ def test_hop_jump_gets_help_and_eta0_is_the_same_cold_and_warm():
     from optimal_control.backflip.config import tiny_hop_config
     from optimal_control.backflip.sagittal import build_sagittal_model
     from optimal_control.backflip.solve import solve_backflip_to
-    from optimal_control.backflip.trajectory import sample_solution
+    from optimal_control.backflip.trajectory import fine_grid_limit_report, sample_solution
     from optimal_control.oracle import OracleConfig, sweep_alphas
 
     cfg = dataclasses.replace(tiny_hop_config(), max_iter=200, cache_dir="")
@@ -102,3 +102,11 @@ def test_hop_jump_gets_help_and_eta0_is_the_same_cold_and_warm():
     jump = 2
     assert eta[0][jump, 2] > 2 * BoundRule().floor_force_n, eta[0]  # Jump no longer at the floor
     np.testing.assert_allclose(eta[1], eta[0], rtol=0.2, atol=3.0)
+    # Limits on a 1 kHz grid: at least the knots' worst effort ratio, named joint and phase.
+    limits = fine_grid_limit_report(cold.solution, cold.transcription.grid, model)
+    knot = sample_solution(cold.solution, cold.transcription.grid, model, 50.0)
+    assert (
+        limits["effort"]["max_ratio"] >= np.max(np.abs(knot.tau_nm) / model.effort_limit_nm) - 1e-9
+    )
+    assert limits["samples"] > 10 * knot.time_s.shape[0]
+    assert limits["speed"]["joint"] in g1.JOINT_NAMES
