@@ -12,6 +12,7 @@ built-in one for balance tasks without a time-indexed reference (stand).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -93,5 +94,51 @@ class PostureCoach:
         return torch.maximum(torch.minimum(wrench, bound), -bound)
 
 
-COACHES = {"posture": PostureCoach.for_env}
+@dataclass(frozen=True)
+class ArtifactCoachConfig:
+    """Tolerance band of the reference-tracking coach used for the warm start (assist as needed)."""
+
+    band_position_m: float = 0.05  # no help while the pelvis is within this of the reference [m]
+    band_orientation_rad: float = 0.15  # ... and within this of its orientation [rad]
+
+
+class ArtifactCoach:
+    """The oracle artifact's coach (:mod:`optimal_control.coach`: feed-forward from the per-frame
+    wrench QP plus PD on the pelvis pose, gains from the robot's mass and inertia), evaluated on
+    the env's state at each env's time along the reference, in the assist wrench's heading frame
+    and clipped to the env's bound."""
+
+    def __init__(self, folder: str, cfg: ArtifactCoachConfig = ArtifactCoachConfig()) -> None:
+        from optimal_control.coach import CoachConfig, coach_from_artifact
+
+        self.coach = coach_from_artifact(
+            folder,
+            CoachConfig(band_position_m=cfg.band_position_m,
+                        band_orientation_rad=cfg.band_orientation_rad),
+        )  # fmt: skip
+
+    def __call__(self, env: G1VecEnv) -> torch.Tensor:
+        """Wrench (N, 6) [N, Nm] for the env's current state."""
+        time_s = env.command_gen.reference_time_s()
+        if time_s is None:
+            raise ValueError(
+                f"task '{env.task.name}' has no time-indexed reference (its command gives no "
+                "reference_time_s), so an artifact's coach cannot follow it: use --warmstart "
+                "posture, or the task whose reference the artifact solved (dance)"
+            )
+        s = env.env_state
+        omega_w = quat_rotate(s.base_quat_w, s.base_ang_vel_b)
+        wrench_w = self.coach.wrench(s.base_pos_w, s.base_quat_w, s.base_lin_vel_w, omega_w,
+                                     time_s.float())  # fmt: skip
+        wrench = world_to_heading(wrench_w.float(), s.base_quat_w)
+        bound = s.assist_bound
+        return torch.maximum(torch.minimum(wrench, bound), -bound)
+
+
+def _posture(env: G1VecEnv) -> Callable[[G1VecEnv], torch.Tensor]:
+    coach = PostureCoach.for_env(env)
+    return lambda e: coach(e.env_state)
+
+
+COACHES = {"posture": _posture}
 """Built-in coaches by name (``--warmstart posture``)."""

@@ -328,7 +328,7 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
 
 def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
     """Distil the coach into the assist head before PPO (curriculum detached meanwhile)."""
-    from rl.coaches import COACHES, PostureCoach
+    from rl.coaches import COACHES, ArtifactCoach
     from rl.warmstart import distill_assist_head
 
     event = env.curriculum_event
@@ -336,10 +336,8 @@ def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str,
     if cfg.warmstart in COACHES:
         coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
     else:
-        # The reference-tracking coach of an artifact lives in optimal_control.coach; until it is
-        # wired here, the artifact gives eta0 and the as-needed posture coach the head's start.
-        coach = PostureCoach.for_env(env)
-        source = f"eta0 from artifact {cfg.warmstart}; as-needed posture coach"
+        coach = ArtifactCoach(cfg.warmstart)
+        source = f"coach and eta0 of the oracle artifact {cfg.warmstart} (as needed: banded)"
     report = distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
     env.attach_curriculum(event)
     return {"coach": source, **report}

@@ -20,13 +20,13 @@ from tensordict import TensorDict
 
 from rl.agents.models import A2CFActor
 from rl.curriculum import WRENCH_AXES
-from rl.envs.state import EnvState
 from rl.envs.vec_env import G1VecEnv
 from robots import g1
 
-Coach = Callable[[EnvState], torch.Tensor]
-"""A coach: batch state -> pelvis wrench (N, 6) [N, Nm] in the robot's heading frame (the assist
-action's frame, :func:`rl.envs.state.heading_to_world`), within the current bound."""
+Coach = Callable[[G1VecEnv], torch.Tensor]
+"""A coach: the env (its ``env_state``, and for reference-tracking coaches its command's time along
+the reference) -> pelvis wrench (N, 6) [N, Nm] in the robot's heading frame (the assist action's
+frame, :func:`rl.envs.state.heading_to_world`), within the current bound."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,7 @@ def distill_assist_head(
         with torch.no_grad():
             for _ in range(cfg.steps_per_round):
                 state = env.env_state
-                target = coach(state)
+                target = coach(env)
                 bound = state.assist_bound.clone()
                 actor.update_normalization(obs)
                 actions = actor(obs, stochastic_output=True)

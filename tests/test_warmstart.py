@@ -58,8 +58,8 @@ def test_distilled_head_reproduces_the_coach_on_held_out_states():
     cfg = TrainConfig(mode="a2cf", env=EnvConfig(num_envs=24, num_threads=2), model=TINY_MODEL,
                       ppo=PPOConfig(num_mini_batches=2))  # fmt: skip
     env, runner, _ = build_training(cfg, run_dir=None)
-    coach = PostureCoach.for_env(env)
-    report = distill_assist_head(runner.alg.actor, env, coach,
+    posture = PostureCoach.for_env(env)
+    report = distill_assist_head(runner.alg.actor, env, lambda e: posture(e.env_state),
                                  WarmStartConfig(rounds=2, steps_per_round=32, epochs=15))  # fmt: skip
     fit = report["held_out_fit"]
     assert report["share_of_states_helped"] > 0.1

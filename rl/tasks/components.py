@@ -53,6 +53,12 @@ class Command(Component, ABC):
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
         """Advance by one policy step of ``dt_s`` [s] and return the command (N, C)."""
 
+    def reference_time_s(self) -> torch.Tensor | None:
+        """Per env, the time along the task's time-indexed reference motion (N,) [s], matching
+        the oracle artifact of the same reference; None when the task has none (a coach built
+        from an artifact needs it)."""
+        return None
+
 
 @dataclass(frozen=True)
 class NoCommandConfig:
