@@ -154,12 +154,7 @@ class G1VecEnv(VecEnv):
         self.history: HistoryBuffer | None = None
         if rand.enabled and not self._per_env_models:
             self._draw_group_models()
-        self._reset_envs(torch.arange(n))
-        self.env_state = self._read_state()
-        self.phase = self.phase_machine.update(self.env_state)
-        self.command = self.command_gen.compute(self.env_state, 0.0)
-        self.env_state = self._read_state()
-        self._obs = self._observations(reset_ids=torch.arange(n))
+        self.reset_envs(torch.arange(n))
 
     # ---------------------------------------------------------------- runner-facing setters
     def set_assist_bound(self, eta: torch.Tensor) -> None:
@@ -195,6 +190,19 @@ class G1VecEnv(VecEnv):
         self.set_assist_bound(cur.eta)
         self.set_assist_enabled(cur.assist_enabled)
         self.set_less_assist_reward(cur.less_assist_reward)
+
+    def reset_envs(self, env_ids: torch.Tensor) -> TensorDict:
+        """Start new episodes for ``env_ids`` (M,) now: the task's initial-state distribution,
+        fresh randomisation, components reset; the observations are rebuilt and returned. Other
+        envs keep their state and history (their observations get fresh noise)."""
+        env_ids = torch.as_tensor(env_ids, dtype=torch.long)
+        self._reset_envs(env_ids)
+        self.env_state = self._read_state()
+        self.phase = self.phase_machine.update(self.env_state)
+        self.command = self.command_gen.compute(self.env_state, 0.0)
+        self.env_state = self._read_state()
+        self._obs = self._observations(reset_ids=env_ids, push_history=self.history is None)
+        return self._obs
 
     # ---------------------------------------------------------------- VecEnv API
     def get_observations(self) -> TensorDict:
@@ -658,15 +666,17 @@ class G1VecEnv(VecEnv):
                 return self._obs[group][:, start : start + width]
         raise KeyError(f"observation group '{group}' has no term '{term}'")
 
-    def _observations(self, reset_ids: torch.Tensor) -> TensorDict:
-        """Build all observation groups from :attr:`env_state`; fill the history of reset envs."""
+    def _observations(self, reset_ids: torch.Tensor, push_history: bool = True) -> TensorDict:
+        """Build all observation groups from :attr:`env_state`; push the new policy observation
+        into the history (a step) and fill the history of reset envs with it."""
         s = self.env_state
         groups = self.task.observations
         cache: dict[int, torch.Tensor] = {}
         clean, noisy = self._group("policy", groups.policy, s, cache)
         if self.history is None:
             self.history = HistoryBuffer(self.num_envs, self.cfg.history_length, clean.shape[1])
-        self.history.push(noisy)
+        if push_history:
+            self.history.push(noisy)
         if reset_ids.numel():
             self.history.fill(reset_ids, noisy[reset_ids])
         return TensorDict(

@@ -31,20 +31,6 @@ class WalkEvaluationConfig:
         return WalkEvaluator(self, env)
 
 
-def _respawn_all(env: Any) -> None:
-    """Reset every env of ``env`` now (as its constructor does).
-
-    ``G1VecEnv`` has no public reset of chosen envs; this repeats the constructor's last lines.
-    """
-    ids = torch.arange(env.num_envs)
-    env._reset_envs(ids)
-    env.env_state = env._read_state()
-    env.phase = env.phase_machine.update(env.env_state)
-    env.command = env.command_gen.compute(env.env_state, 0.0)
-    env.env_state = env._read_state()
-    env._obs = env._observations(reset_ids=ids)
-
-
 class WalkEvaluator:
     """Accumulates per-env tracking errors and distance over each env's first episode."""
 
@@ -65,7 +51,7 @@ class WalkEvaluator:
         levels = torch.tensor(cfg.levels)[(i // cols) % len(cfg.levels)]
         self.tiles = torch.stack([levels, i % cols], dim=-1)
         curriculum.pin_tiles(self.tiles)
-        _respawn_all(env)
+        env.reset_envs(torch.arange(env.num_envs))
         self.curriculum = curriculum
         self.types = [terrain.tile_type(int(c)) for c in self.tiles[:, 1]]
         self.lin_error_sum = torch.zeros(n)
