@@ -31,7 +31,8 @@ for name in ("baseline", "a2cf", "a2cf_warm"):
     axes[0].plot(steps, [r["mean_episode_length"] or 0 for r in rows], label=name)
     axes[1].plot(steps, [r["applied_force_n"] for r in rows], label=name)
     axes[2].plot(steps, [(r["eta_norm"] or [0])[0] for r in rows], label=name)
-for ax, title in zip(axes, ("mean episode length [steps]", "applied force [N]", "|eta| [N, Nm]")):
+titles = ("mean episode length [steps]", "applied force [N]", "|eta| [N, Nm]")
+for ax, title in zip(axes, titles, strict=True):
     ax.set_xlabel("env steps")
     ax.set_title(title)
     ax.legend()
