@@ -38,6 +38,9 @@ def test_tracking_error_is_exactly_zero_on_the_reference() -> None:
     try:
         cmd, lay = env.command_gen, env.layout
         frames = cmd.frame(ahead=1).numpy()  # the frames the current command targets
+        torch.testing.assert_close(
+            cmd.reference_time_s(), torch.as_tensor(frames - 1, dtype=torch.float64) * 0.02
+        )
         qpos = cmd.library.qpos[frames].copy()
         qpos[:, 2] += cmd.z_offset_m.numpy()
         env.state[:, lay.qpos] = qpos

@@ -317,6 +317,11 @@ class ClipTrackingCommand(Command):
         command[at_end, 3:7] = torch.tensor([1.0, 0.0, 0.0, 0.0])
         return command
 
+    def reference_time_s(self) -> torch.Tensor:
+        """Per env, the time of its current frame along its clip (N,) [s] (for an oracle
+        artifact's coach: the built-in dance artifact of ``solve-dance`` has the same frames)."""
+        return (self.frame(0) - self.library.start[self.clip]).double() * self.library.dt_s
+
     def reference_pose(self, ahead: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
         """Reference pelvis position (N, 3) [m] (with each env's floor offset) and orientation
         (N, 4) w x y z of the frame ``ahead`` steps on."""
