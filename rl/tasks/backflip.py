@@ -3,7 +3,8 @@
 Stand -> Crouch -> Jump -> Air -> Land (:mod:`rl.tasks.backflip_terms`), started by the command
 ``c_t = 1_start`` after a random standing delay. Rewards are the paper's backflip table, each
 term masked to its phases; the desired joint pose per phase comes from a backflip oracle artifact
-(``backflip_task(artifact_path)``, or ``--task-term-param pose_deviation.source=PATH``) or from
+(``backflip_task(artifact_path)``, or the run override ``task_overrides={"term_params":
+{"pose_deviation": {"source": PATH}}}``) or from
 built-in poses (the default; the task description and ``config.json`` say which). Success =
 reaching Land and staying there upright and still for 1 s (to the episode's time-out); the success
 rate is the skill measure. A failed flip that lands on hands, knees or back (any non-foot link on
