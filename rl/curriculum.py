@@ -59,6 +59,7 @@ class CurriculumConfig:
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
     less_assist_progress: float = 0.8  # skill progress that switches on the less-assist reward [-]
     skill_learned_progress: float = 1.0  # skill progress at which the skill counts as learned [-]
+    min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
 
     def __post_init__(self) -> None:
         """Reject values for which Algorithm 1 is meaningless."""
@@ -66,6 +67,10 @@ class CurriculumConfig:
             raise ValueError(f"curriculum epsilon must be in [0, 1), got {self.epsilon}")
         if not 0.0 < self.delta < 1.0:
             raise ValueError(f"curriculum delta must be in (0, 1), got {self.delta}")
+        if self.min_phase_samples < 1:
+            raise ValueError(
+                f"curriculum min_phase_samples must be >= 1, got {self.min_phase_samples}"
+            )
         if self.negligible_force_n < 0.0:
             raise ValueError(
                 f"curriculum negligible_force_n must be >= 0 N, got {self.negligible_force_n}"
@@ -366,7 +371,9 @@ class CurriculumEvent:
         p = self.curriculum.num_phases
         norm_sum, count = sums[:p], sums[p : 2 * p]
         force_sum, steps, skill_sum, processes = sums[2 * p :].tolist()
-        visited = count > 0
+        # A phase seen in only a few samples gives a noisy |F|; below min_phase_samples it
+        # counts as unvisited (keeps its bound): rare phases are not shrunk by noise.
+        visited = count >= self.curriculum.cfg.min_phase_samples
         applied_norm = torch.where(visited, norm_sum / count.clamp(min=1.0), 0.0).float()
         skill_progress = skill_sum / (processes * self.steps_per_iteration)
         update = self.curriculum.update(self.iteration, applied_norm, visited, skill_progress)

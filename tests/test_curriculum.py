@@ -242,3 +242,21 @@ def test_curriculum_statistics_are_reduced_across_processes() -> None:
     # single-process view of rank 0 alone would have shrunk phase 0; pooled, it is inside the band
     torch.testing.assert_close(torch.tensor(rows[0]["eta"][0]), ETA0[0])
     torch.testing.assert_close(torch.tensor(rows[0]["eta"][1]), ETA0[1] * 1.2)
+
+
+def test_rarely_visited_phases_keep_their_bound_with_min_phase_samples() -> None:
+    """Option against a measured failure (backflip): a phase visited by a handful of samples
+    shrinks on noise, and the squashed wrench can never exceed its bound to grow it back."""
+    cfg = CurriculumConfig(min_phase_samples=3)
+    event = CurriculumEvent(AssistCurriculum(ETA0, cfg), steps_per_iteration=1)
+    row = event.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)  # phase 1: one sample
+    assert row["visited"] == [True, False]
+    torch.testing.assert_close(torch.tensor(row["eta"][1]), ETA0[1])
+    torch.testing.assert_close(torch.tensor(row["eta"][0]), ETA0[0] * 0.8)
+    # with the paper's rule the single sample counts and shrinks phase 1 too
+    paper = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=1)
+    torch.testing.assert_close(
+        torch.tensor(paper.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)["eta"][1]), ETA0[1] * 0.8
+    )
+    with pytest.raises(ValueError, match="min_phase_samples"):
+        CurriculumConfig(min_phase_samples=0)
