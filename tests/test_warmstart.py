@@ -84,3 +84,31 @@ def test_train_with_warmstart_writes_the_report_and_refuses_bad_sources(tmp_path
         train(dataclasses.replace(cfg, warmstart=str(tmp_path), run_name="bad"), verbose=False)
     with pytest.raises(ValueError, match="needs an assist head"):
         dataclasses.replace(cfg, mode="baseline")
+
+
+@pytest.mark.slow
+def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
+    """The oracle's coach of the built-in dance, followed at each env's clip time (~1 min)."""
+    from optimal_control.oracle import OracleConfig, solve_dance, solve_walk
+    from optimal_control.walk import WalkConfig
+
+    quick = OracleConfig(alphas=(1.0, 0.5), video=False, progress=False)
+    _, dance_dir = solve_dance(None, dataclasses.replace(quick, out=str(tmp_path / "dance")))
+    cfg = TrainConfig(task="dance", mode="a2cf", warmstart=str(dance_dir), iterations=1,
+                      num_steps_per_env=8, env=EnvConfig(num_envs=8, num_threads=2),
+                      model=TINY_MODEL, ppo=PPOConfig(num_mini_batches=2, num_learning_epochs=1),
+                      distill=WarmStartConfig(rounds=2, steps_per_round=24, epochs=10),
+                      out=str(tmp_path), run_name="dance", export_onnx=False)  # fmt: skip
+    run = train(cfg, verbose=False).run_dir
+    report = json.loads((run / "warmstart.json").read_text())
+    assert "coach and eta0 of the oracle artifact" in report["coach"]
+    eta0 = json.loads((run / "config.json").read_text())["eta0"]
+    oracle = json.loads((dance_dir / "oracle.json").read_text())["eta0"]
+    torch.testing.assert_close(torch.tensor(eta0), torch.tensor(oracle, dtype=torch.float32))
+    assert report["held_out_fit"]["my"]["coach_mean_abs"] > 0
+    _, walk_dir = solve_walk(
+        WalkConfig(duration=2.5), dataclasses.replace(quick, out=str(tmp_path / "walk"))
+    )
+    with pytest.raises(ValueError, match="no time-indexed reference"):
+        train(dataclasses.replace(cfg, task="walk", warmstart=str(walk_dir), run_name="walk"),
+              verbose=False)  # fmt: skip
