@@ -29,7 +29,7 @@ class DemoConfig:
 
     task: str = "stand"  # training task (see list-tasks)
     num_envs: int = 64  # parallel envs of each training run [-]
-    iterations: int = 60  # PPO iterations of each run (24 steps per env each) [-]
+    iterations: int = 200  # PPO iterations of each run (24 steps per env each) [-]
     seed: int = 0  # seed of both runs [-]
     walk_duration_s: float = 4.0  # length of the oracle's walk reference [s]
     eval_envs: int = 16  # envs of each evaluation [-]
