@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from rl.envs.state import EnvState, quat_rotate
-from rl.tasks.components import Command, PhaseMachine, SkillMeasure
+from rl.tasks.components import Command, EpisodeWindow, PhaseMachine, SkillMeasure
 from robots import g1
 
 BACKFLIP_PHASES = ("stand", "crouch", "jump", "air", "land")
@@ -356,8 +356,7 @@ class BackflipSkill(SkillMeasure):
     def __init__(self, cfg: BackflipSkillConfig, max_episode_length: int) -> None:
         self.cfg = cfg
         self.max_episode_length = max_episode_length
-        self._window = torch.zeros(cfg.window)
-        self._count = 0
+        self.window = EpisodeWindow(cfg.window)
         self.last_env_ids = torch.zeros(0, dtype=torch.long)
         self.last_success = torch.zeros(0, dtype=torch.bool)
 
@@ -372,16 +371,11 @@ class BackflipSkill(SkillMeasure):
         success = time_outs & backflip_success(state, self.cfg)[env_ids]
         self.last_env_ids, self.last_success = env_ids.clone(), success.clone()
         counted = ~time_outs | (lived_steps >= self.max_episode_length)
-        flags = success[counted].to(torch.float32)[-self._window.numel() :]
-        n = flags.numel()
-        if n == 0:
-            return
-        self._window = torch.cat([self._window[n:], flags])
-        self._count = min(self._count + n, self._window.numel())
+        self.window.push(success[counted])
 
     def success_rate(self) -> float:
         """Success fraction of the window (0 before any counted episode) [-]."""
-        return float(self._window[-self._count :].mean()) if self._count else 0.0
+        return self.window.mean()
 
     def progress(self) -> float:
         """Success rate over ``target_success``."""
@@ -392,10 +386,9 @@ class BackflipSkill(SkillMeasure):
         return {"Skill/backflip_success_rate": self.success_rate()}
 
     def state_dict(self) -> dict[str, Any]:
-        """Window and fill count."""
-        return {"window": self._window.clone(), "count": self._count}
+        """The window."""
+        return self.window.state_dict()
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the window."""
-        self._window = state["window"].clone()
-        self._count = int(state["count"])
+        self.window.load_state_dict(state)

@@ -110,6 +110,35 @@ class _SinglePhase(PhaseMachine):
 
 
 # -------------------------------------------------------------------------------- skill measure
+class EpisodeWindow:
+    """The last ``size`` per-episode values (success flags, errors), oldest dropped first."""
+
+    def __init__(self, size: int) -> None:
+        self.values = torch.zeros(size)
+        self.count = 0
+
+    def push(self, values: torch.Tensor) -> None:
+        """Append per-episode values (M,) (only the newest ``size`` are kept)."""
+        values = values.to(torch.float32)[-self.values.numel() :]
+        n = values.numel()
+        if n:
+            self.values = torch.cat([self.values[n:], values])
+            self.count = min(self.count + n, self.values.numel())
+
+    def mean(self, empty: float = 0.0) -> float:
+        """Mean of the values held (``empty`` before any)."""
+        return float(self.values[-self.count :].mean()) if self.count else empty
+
+    def state_dict(self) -> dict[str, Any]:
+        """Values and fill count."""
+        return {"window": self.values.clone(), "count": self.count}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        self.values = state["window"].clone()
+        self.count = int(state["count"])
+
+
 class SkillMeasure(Component, ABC):
     """Skill relative to its target from finished episodes: >= 1 means learned."""
 
@@ -156,8 +185,7 @@ class SurvivalSkill(SkillMeasure):
     def __init__(self, cfg: SurvivalSkillConfig, max_episode_length: int) -> None:
         self.cfg = cfg
         self.max_episode_length = max_episode_length
-        self._window = torch.zeros(cfg.window)
-        self._count = 0
+        self.window = EpisodeWindow(cfg.window)
 
     def on_episodes_end(
         self,
@@ -169,25 +197,16 @@ class SurvivalSkill(SkillMeasure):
         """Push flags; episodes cut short by a time limit before a full episode are skipped."""
         fell = ~time_outs
         survived = time_outs & (lived_steps >= self.max_episode_length)
-        counted = fell | survived
-        flags = survived[counted].to(torch.float32)[-self._window.numel() :]
-        n = flags.numel()
-        if n == 0:
-            return
-        self._window = torch.cat([self._window[n:], flags])
-        self._count = min(self._count + n, self._window.numel())
+        self.window.push(survived[fell | survived])
 
     def progress(self) -> float:
         """Survival fraction of the window over ``target_survival`` (0 before any episode)."""
-        if self._count == 0:
-            return 0.0
-        return float(self._window[-self._count :].mean()) / self.cfg.target_survival
+        return self.window.mean() / self.cfg.target_survival
 
     def state_dict(self) -> dict[str, Any]:
-        """Window and fill count."""
-        return {"window": self._window.clone(), "count": self._count}
+        """The window."""
+        return self.window.state_dict()
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the window."""
-        self._window = state["window"].clone()
-        self._count = int(state["count"])
+        self.window.load_state_dict(state)

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from rl.envs.state import EnvState, quat_multiply
-from rl.tasks.components import Command, SkillMeasure
+from rl.tasks.components import Command, EpisodeWindow, SkillMeasure
 from robots import g1
 
 BUILTIN_CLIP = "builtin"
@@ -382,8 +382,7 @@ class TrackingSkill(SkillMeasure):
     def __init__(self, cfg: TrackingSkillConfig, max_episode_length: int) -> None:
         self.cfg = cfg
         self.max_episode_length = max_episode_length
-        self._window = torch.zeros(cfg.window)
-        self._count = 0
+        self.window = EpisodeWindow(cfg.window)
 
     def on_episodes_end(
         self,
@@ -396,16 +395,11 @@ class TrackingSkill(SkillMeasure):
         err = joint_error_mean_abs(state)[env_ids]
         err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
         counted = ~time_outs | (lived_steps >= self.max_episode_length)
-        values = err[counted][-self._window.numel() :]
-        n = values.numel()
-        if n == 0:
-            return
-        self._window = torch.cat([self._window[n:], values])
-        self._count = min(self._count + n, self._window.numel())
+        self.window.push(err[counted])
 
     def mean_error_rad(self) -> float:
         """Mean error of the window [rad] (inf before any counted episode)."""
-        return float(self._window[-self._count :].mean()) if self._count else math.inf
+        return self.window.mean(empty=math.inf)
 
     def progress(self) -> float:
         """``threshold / mean error`` (>= 1: learned; 0 before any episode)."""
@@ -414,16 +408,15 @@ class TrackingSkill(SkillMeasure):
 
     def log(self) -> dict[str, float]:
         """The window's mean episode-end joint error."""
-        return {"Skill/dance_joint_error_rad": self.mean_error_rad()} if self._count else {}
+        return {"Skill/dance_joint_error_rad": self.mean_error_rad()} if self.window.count else {}
 
     def state_dict(self) -> dict[str, Any]:
-        """Window and fill count."""
-        return {"window": self._window.clone(), "count": self._count}
+        """The window."""
+        return self.window.state_dict()
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the window."""
-        self._window = state["window"].clone()
-        self._count = int(state["count"])
+        self.window.load_state_dict(state)
 
 
 def quat_angle(a_wxyz: torch.Tensor, b_wxyz: torch.Tensor) -> torch.Tensor:
