@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from optimal_control.files import atomic_write_text, check_writable_dir
+from optimal_control.files import atomic_savefig, atomic_write_text, check_writable_dir
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ def _curves(runs: dict[str, Path], out: Path) -> Path:
         ax.legend()
     fig.tight_layout()
     path = out / "learning_curves.png"
-    fig.savefig(path, dpi=100)
+    atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
     return path
 
@@ -124,13 +124,9 @@ def run_demo(cfg: DemoConfig = DemoConfig()) -> Path:
         times[f"train {name}"] = time.time() - start
         start = time.time()
         video = str(out / f"{name}.mp4") if cfg.video else ""
-        try:
-            evals[name] = evaluate(
-                runs[name], EvalConfig(num_envs=cfg.eval_envs, video=video, sim2sim=True)
-            )
-        except RuntimeError as err:  # no GL context for the video: evaluate without it
-            evals[name] = evaluate(runs[name], EvalConfig(num_envs=cfg.eval_envs, sim2sim=True))
-            evals[name]["video_note"] = f"no video: {err}"
+        evals[name] = evaluate(
+            runs[name], EvalConfig(num_envs=cfg.eval_envs, video=video, sim2sim=True)
+        )
         times[f"eval {name}"] = time.time() - start
     curves = _curves(runs, out)
     report = _report(cfg, artifact, oracle_dir, warmstart, runs, evals, curves, times)

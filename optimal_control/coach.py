@@ -474,7 +474,7 @@ def write_coach_report(report: dict, folder: str | Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from optimal_control.files import atomic_write_json
+    from optimal_control.files import atomic_savefig, atomic_write_json
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -508,7 +508,7 @@ def write_coach_report(report: dict, folder: str | Path) -> list[Path]:
     fig.suptitle(f"coach in MuJoCo: {report['task']} ({report['duration_s']:.1f} s)")
     fig.tight_layout()
     paths.append(folder / "coach.png")
-    fig.savefig(paths[-1], dpi=90)
+    atomic_savefig(fig, paths[-1], dpi=90)
     plt.close(fig)
     return paths
 

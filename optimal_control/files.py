@@ -105,6 +105,15 @@ def atomic_save_npz(
     return atomic_write_bytes(path, buffer.getvalue())
 
 
+def atomic_savefig(fig: Any, path: str | Path, **kwargs: Any) -> Path:
+    """Save a matplotlib figure to ``path`` atomically (format from the suffix; ``kwargs`` go to
+    ``savefig``, e.g. ``dpi``)."""
+    path = Path(path)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=path.suffix.lstrip(".") or "png", **kwargs)
+    return atomic_write_bytes(path, buffer.getvalue())
+
+
 def read_npz(path: str | Path, what: str) -> dict[str, np.ndarray]:
     """All arrays of the ``.npz`` at ``path``, loaded eagerly (so a truncated member fails here).
 

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from optimal_control.files import atomic_savefig, atomic_write_json
 from robots.mujoco_model import MujocoModelConfig
 
 TRACKING_TERMS = ("track_lin_vel_xy", "track_ang_vel_z")
@@ -181,7 +182,7 @@ def compare_runs(
         "negligible_force_n": negligible_force_n,
         "plot": str(out_dir / COMPARE_PLOT),
     }
-    (out_dir / COMPARE_JSON).write_text(json.dumps(result, indent=2))
+    atomic_write_json(out_dir / COMPARE_JSON, result)
     return result
 
 
@@ -220,7 +221,7 @@ def plot_runs(runs: list[dict[str, Any]], path: Path) -> None:
     axes[0][0].legend(fontsize=8)
     fig.suptitle("training comparison (dashed: assistance switched off)")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
 
 

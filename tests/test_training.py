@@ -294,3 +294,38 @@ def test_half_created_and_damaged_runs_resume_or_say_what_to_do(tmp_path, capsys
     (run / "config.json").write_text("{")
     assert cli_main(["train", "--resume", str(run)]) == 2
     assert "config.json is not a valid run config" in capsys.readouterr().err
+
+
+def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> None:
+    """No offscreen GL (or no encoder): eval still writes its metrics and says why there is no
+    video (fault injected where the renderer would fail)."""
+    import rl.evaluate
+    from optimal_control.render import RenderUnavailableError
+
+    run = train(tiny_config(tmp_path, "baseline", iterations=1), verbose=False).run_dir
+
+    def no_gl(*args, **kwargs):
+        raise RenderUnavailableError("MuJoCo offscreen rendering failed with MUJOCO_GL=egl")
+
+    monkeypatch.setattr(rl.evaluate, "_render_qpos", no_gl)
+    with pytest.warns(UserWarning, match="no video"):
+        result = evaluate(run, EvalConfig(num_envs=2, num_steps=3, video=str(tmp_path / "v.mp4")))
+    saved = json.loads((run / "eval.json").read_text())
+    assert saved["video_note"].startswith("no video: MuJoCo offscreen rendering failed")
+    assert "video" not in saved and saved["num_steps"] == 3 == result["num_steps"]
+
+
+def test_figures_are_written_atomically(tmp_path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from optimal_control.files import atomic_savefig
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+    path = atomic_savefig(fig, tmp_path / "plot.png", dpi=50)
+    plt.close(fig)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]  # no temporary left behind

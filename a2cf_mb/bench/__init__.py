@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from a2cf_mb.config_cli import add_config_arguments, config_from_args
+from optimal_control.files import atomic_write_json
 
 
 def register_benchmark(
@@ -29,7 +28,7 @@ def register_benchmark(
         results = run(cfg)
         print(format_results(results))
         if cfg.output:
-            Path(cfg.output).write_text(json.dumps(results, indent=2))
+            atomic_write_json(cfg.output, results)
         return 0
 
     parser.set_defaults(func=_run)

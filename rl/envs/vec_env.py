@@ -50,9 +50,6 @@ from robots.mujoco_model import MujocoModelConfig
 
 GRAVITY_MPS2 = 9.81
 
-DERIVED_GROUPS = ("policy_clean", "history", "base_lin_vel")
-"""Groups the env derives from the task's ``policy`` group (see :class:`ObservationsConfig`)."""
-
 
 class G1VecEnv(VecEnv):
     """Batched G1 environment implementing ``rsl_rl.env.VecEnv`` (see ``rl_contract.md``).
@@ -124,7 +121,6 @@ class G1VecEnv(VecEnv):
         self.applied_wrench = torch.zeros(n, WRENCH_DIM)
         self.assist_mask = torch.ones(n, WRENCH_DIM)
         self.phase = torch.zeros(n, dtype=torch.long)
-        self.terminated = torch.zeros(n, dtype=torch.bool)
         self.randomization_params = nominal_params(n, self.model)
         self._push_timer_s = torch.zeros(n)
         self.diverged_total = 0

@@ -22,6 +22,7 @@ from typing import Any
 
 import torch
 
+from optimal_control.files import atomic_savefig
 from rl import rewards, terminations
 from rl.curriculum import paper_bound_rows
 from rl.tasks import backflip_terms as bt
@@ -122,7 +123,7 @@ class BackflipEvaluator:
         ax1.set_xlabel("time [s]")
         ax1.set_ylabel("fraction of envs in phase")
         fig.tight_layout()
-        fig.savefig(path, dpi=100)
+        atomic_savefig(fig, path, dpi=100)
         plt.close(fig)
 
 

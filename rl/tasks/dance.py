@@ -21,6 +21,7 @@ from typing import Any
 
 import torch
 
+from optimal_control.files import atomic_savefig
 from rl import rewards, terminations
 from rl.curriculum import paper_bound_rows
 from rl.tasks import dance_terms as dt
@@ -118,7 +119,7 @@ class DanceEvaluator:
         for ax in axes:
             ax.set_xlabel("time [s]")
         fig.tight_layout()
-        fig.savefig(path, dpi=100)
+        atomic_savefig(fig, path, dpi=100)
         plt.close(fig)
 
 

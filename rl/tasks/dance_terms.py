@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from optimal_control.files import atomic_save_npz
 from rl.envs.state import EnvState, quat_multiply
 from rl.tasks.components import Command, EpisodeWindow, SkillMeasure
 from robots import g1
@@ -131,9 +132,7 @@ def _builtin_reference():
             path.unlink(missing_ok=True)  # a broken cache file is rebuilt
     ref = dance.built_in_dance().reference
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{id(ref)}.npz")
-    np.savez(tmp, **ref.to_arrays())
-    tmp.replace(path)
+    atomic_save_npz(path, ref.to_arrays(), compressed=False)
     return ref
 
 

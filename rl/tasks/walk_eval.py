@@ -9,12 +9,13 @@ run folder and returns the table.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import torch
+
+from optimal_control.files import atomic_savefig, atomic_write_json
 
 EVAL_JSON = "walk_eval.json"
 EVAL_PLOT = "walk_eval.png"
@@ -113,7 +114,7 @@ class WalkEvaluator:
             "per_terrain_level": table,
         }
         run_dir = Path(run_dir)
-        (run_dir / EVAL_JSON).write_text(json.dumps(result, indent=2))
+        atomic_write_json(run_dir / EVAL_JSON, result)
         _plot(table, run_dir / EVAL_PLOT)
         result["plot"] = str(run_dir / EVAL_PLOT)
         return result
@@ -144,5 +145,5 @@ def _plot(table: list[dict[str, Any]], path: Path) -> None:
     axes[0].legend(fontsize=7)
     fig.suptitle("walk evaluation, assistance off")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
