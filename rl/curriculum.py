@@ -14,6 +14,14 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
   env was in that phase, of the Euclidean norm of the 6-D applied wrench (``extras["assist"]
   ["applied_wrench"]``, after the random mask and the bound; force [N] and moment [Nm] entries are
   mixed in one norm exactly as the paper's ``|F|``). ``|eta_k|`` is the 6-D norm of the bound.
+- ``--curriculum-force-measure quantile`` (an option; the default ``mean`` is the paper's rule)
+  replaces that mean by ``q |eta_k|`` with ``q`` the ``force_quantile`` of the per-sample ratio
+  ``|F| / |eta|``: the bound shrinks only once even the largest help the agent gives (its 90th
+  percentile by default) sits well inside it. An as-needed helper (a warm-started head that is zero
+  while the learner is within its tolerance band and saturates when it falls) has a small *mean*
+  and the paper's rule shrinks its bound every iteration, whatever it does when help is needed
+  (measured: ``docs/results/dance_warmstart``); the quantile keeps the bound while help is still
+  needed in more than ``1 - force_quantile`` of the states.
 - The force rule runs only for phases visited in the iteration (no sample, no measurement); the
   skill-learned decay runs for every phase, so all bounds go to zero once the skill is learned.
 - ``isSkillLearned`` is ``skill_progress >= skill_learned_progress`` (1.0: the task's target),
@@ -50,6 +58,13 @@ def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(float(v) for v in row) for row in PAPER_ETA0[paper_task]["all"])
 
 
+FORCE_MEASURES: tuple[str, ...] = ("mean", "quantile")
+"""What ``|F_k|`` of the force rule is (:class:`CurriculumConfig`.force_measure)."""
+
+RATIO_BINS = 200
+"""Histogram bins of the per-sample ratio ``|F| / |eta|`` in [0, 1] (quantile resolution 0.005)."""
+
+
 @dataclass(frozen=True)
 class CurriculumConfig:
     """Hyper-parameters of the assistive-force curriculum (paper Sec. III-B, Alg. 1)."""
@@ -59,6 +74,10 @@ class CurriculumConfig:
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
     less_assist_progress: float = 0.8  # skill progress that switches on the less-assist reward [-]
     skill_learned_progress: float = 1.0  # skill progress at which the skill counts as learned [-]
+    force_measure: str = "mean"  # |F_k| of the force rule: "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
+    force_quantile: float = (
+        0.9  # quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]
+    )
     min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
 
     def __post_init__(self) -> None:
@@ -67,6 +86,15 @@ class CurriculumConfig:
             raise ValueError(f"curriculum epsilon must be in [0, 1), got {self.epsilon}")
         if not 0.0 < self.delta < 1.0:
             raise ValueError(f"curriculum delta must be in (0, 1), got {self.delta}")
+        if self.force_measure not in FORCE_MEASURES:
+            raise ValueError(
+                f"curriculum force_measure must be one of {FORCE_MEASURES}, got "
+                f"'{self.force_measure}'"
+            )
+        if not 0.0 < self.force_quantile < 1.0:
+            raise ValueError(
+                f"curriculum force_quantile must be in (0, 1), got {self.force_quantile}"
+            )
         if self.min_phase_samples < 1:
             raise ValueError(
                 f"curriculum min_phase_samples must be >= 1, got {self.min_phase_samples}"
@@ -261,11 +289,13 @@ class AssistStatistics:
         self.num_phases = num_phases
         self.norm_sum = torch.zeros(num_phases, dtype=torch.float64, device=device)
         self.count = torch.zeros(num_phases, dtype=torch.float64, device=device)
+        self.ratio_hist = torch.zeros(num_phases, RATIO_BINS, dtype=torch.float64, device=device)
         self.force_sum_n = 0.0
         self.steps = 0
 
     def add(self, assist: dict[str, torch.Tensor]) -> None:
-        """Add one step: ``assist["applied_wrench"]`` (N, 6) and ``assist["phase"]`` (N,) long."""
+        """Add one step: ``assist["applied_wrench"]`` (N, 6), ``assist["phase"]`` (N,) long and,
+        when present, ``assist["bound"]`` (N, 6) (for the histogram of ``|F| / |eta|``)."""
         wrench = assist["applied_wrench"]
         phase = assist["phase"].long().reshape(-1)
         if wrench.ndim != 2 or wrench.shape[1] != 6 or wrench.shape[0] != phase.shape[0]:
@@ -277,6 +307,11 @@ class AssistStatistics:
         phase = phase.to(self.norm_sum.device)
         self.norm_sum.index_add_(0, phase, norm)
         self.count.index_add_(0, phase, torch.ones_like(norm))
+        if "bound" in assist:
+            eta = torch.linalg.vector_norm(assist["bound"].double(), dim=-1).to(norm.device)
+            ratio = torch.where(eta > 0, norm / eta.clamp_min(1e-12), 0.0).clamp(0.0, 1.0)
+            bins = (ratio * RATIO_BINS).long().clamp_max(RATIO_BINS - 1)
+            self.ratio_hist.index_put_((phase, bins), torch.ones_like(norm), accumulate=True)
         self.force_sum_n += float(torch.linalg.vector_norm(wrench[:, :3].double(), dim=-1).mean())
         self.steps += 1
 
@@ -294,6 +329,7 @@ class AssistStatistics:
         """Zero the sums for the next rollout."""
         self.norm_sum.zero_()
         self.count.zero_()
+        self.ratio_hist.zero_()
         self.force_sum_n = 0.0
         self.steps = 0
 
@@ -302,6 +338,7 @@ class AssistStatistics:
         return {
             "norm_sum": self.norm_sum.clone(),
             "count": self.count.clone(),
+            "ratio_hist": self.ratio_hist.clone(),
             "force_sum_n": self.force_sum_n,
             "steps": self.steps,
         }
@@ -310,8 +347,20 @@ class AssistStatistics:
         """Restore :meth:`state_dict` output."""
         self.norm_sum.copy_(state["norm_sum"])
         self.count.copy_(state["count"])
+        if "ratio_hist" in state:  # checkpoints before the quantile measure have none
+            self.ratio_hist.copy_(state["ratio_hist"])
         self.force_sum_n = float(state["force_sum_n"])
         self.steps = int(state["steps"])
+
+
+def histogram_quantile(hist: torch.Tensor, q: float) -> torch.Tensor:
+    """Per row of ``hist`` (P, B) over [0, 1]: the upper edge of the bin where the cumulative
+    share first reaches ``q`` (0 for an empty row)."""
+    total = hist.sum(dim=-1, keepdim=True)
+    cum = hist.cumsum(dim=-1) / total.clamp_min(1e-12)
+    first = (cum < q - 1e-12).sum(dim=-1)  # bins strictly below the quantile
+    edge = (first + 1).double() / hist.shape[-1]
+    return torch.where(total.squeeze(-1) > 0, edge.clamp_max(1.0), 0.0)
 
 
 def _all_reduce_sum(values: torch.Tensor) -> torch.Tensor:
@@ -361,6 +410,7 @@ class CurriculumEvent:
                 [
                     self.stats.norm_sum,
                     self.stats.count,
+                    self.stats.ratio_hist.reshape(-1),
                     torch.tensor(
                         [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum, 1.0],
                         dtype=torch.float64,
@@ -370,14 +420,24 @@ class CurriculumEvent:
         )
         p = self.curriculum.num_phases
         norm_sum, count = sums[:p], sums[p : 2 * p]
-        force_sum, steps, skill_sum, processes = sums[2 * p :].tolist()
+        hist = sums[2 * p : 2 * p + p * RATIO_BINS].reshape(p, RATIO_BINS)
+        force_sum, steps, skill_sum, processes = sums[2 * p + p * RATIO_BINS :].tolist()
         # A phase seen in only a few samples gives a noisy |F|; below min_phase_samples it
         # counts as unvisited (keeps its bound): rare phases are not shrunk by noise.
         visited = count >= self.curriculum.cfg.min_phase_samples
-        applied_norm = torch.where(visited, norm_sum / count.clamp(min=1.0), 0.0).float()
+        mean_norm = torch.where(visited, norm_sum / count.clamp(min=1.0), 0.0).float()
+        cfg = self.curriculum.cfg
+        ratio_q = histogram_quantile(hist, cfg.force_quantile).float()
+        eta_norm = torch.linalg.vector_norm(self.curriculum.eta, dim=-1)
+        applied_norm = mean_norm if cfg.force_measure == "mean" else ratio_q * eta_norm
         skill_progress = skill_sum / (processes * self.steps_per_iteration)
         update = self.curriculum.update(self.iteration, applied_norm, visited, skill_progress)
-        row = {**update.as_dict(), "applied_force_n": force_sum / max(steps, 1.0)}
+        row = {
+            **update.as_dict(),
+            "applied_force_n": force_sum / max(steps, 1.0),
+            "mean_applied_norm": mean_norm.tolist(),
+            "applied_ratio_quantile": ratio_q.tolist(),
+        }
         self.history.append(row)
         self.iteration += 1
         self.stats.reset()

@@ -327,20 +327,28 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
 
 
 def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
-    """Distil the coach into the assist head before PPO (curriculum detached meanwhile)."""
+    """Before PPO (curriculum detached meanwhile): ``--warmstart-motion`` clones the motion head
+    from the task's reference, then ``--warmstart`` distils the coach into the assist head (in the
+    states the cloned motion policy visits). The report of each goes into ``warmstart.json``."""
     from rl.coaches import COACHES, ArtifactCoach
-    from rl.warmstart import distill_assist_head
+    from rl.warmstart import distill_assist_head, distill_motion_head
 
     event = env.curriculum_event
     env.attach_curriculum(None)  # the distillation's env steps are no rollout of Algorithm 1
-    if cfg.warmstart in COACHES:
-        coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
-    else:
-        coach = ArtifactCoach(cfg.warmstart)
-        source = f"coach and eta0 of the oracle artifact {cfg.warmstart} (as needed: banded)"
-    report = distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
+    report: dict[str, Any] = {}
+    if cfg.warmstart_motion:
+        report["motion"] = distill_motion_head(runner.alg.actor, runner.env, cfg.distill)
+    if cfg.warmstart:
+        if cfg.warmstart in COACHES:
+            coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
+        else:
+            coach = ArtifactCoach(cfg.warmstart)
+            source = f"coach and eta0 of the oracle artifact {cfg.warmstart} (as needed: banded)"
+        report.update(
+            coach=source, **distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
+        )
     env.attach_curriculum(event)
-    return {"coach": source, **report}
+    return report
 
 
 def seed_everything(seed: int) -> None:
@@ -438,6 +446,12 @@ def build_training(
     if eta0 is None:
         eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(cfg.env, task)
+    if cfg.warmstart_motion and env.command_gen.reference_joint_pos_rad() is None:
+        env.close()
+        raise ValueError(
+            f"--warmstart-motion needs a time-indexed joint reference; task '{task.name}' has "
+            "none (its command gives no reference_joint_pos_rad): use it with dance"
+        )
     env.set_random_mask_prob(cfg.random_mask_prob if mode.random_mask else 0.0)
     if mode.assist:
         curriculum = AssistCurriculum(initial_bounds(task, mode, eta0), cfg.curriculum)
@@ -507,7 +521,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
         )
         atomic_write_json(run_dir / "git.json", git_revision(Path(__file__).resolve().parent))
 
-    if cfg.warmstart and checkpoint is None:
+    if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
         atomic_write_json(run_dir / WARMSTART_FILE, warm_start(cfg, env, runner))
 
     remaining = cfg.iterations - runner.completed_iterations

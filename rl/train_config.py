@@ -73,6 +73,7 @@ class TrainConfig:
     model: ModelConfig = field(default_factory=ModelConfig)  # network sizes and VAE weights
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)  # Algorithm 1
     warmstart: str = ""  # distil the assist head from a coach first: "posture" (built-in, as needed) or an oracle artifact folder; empty: none [-]
+    warmstart_motion: bool = False  # clone the motion head from the task's time-indexed joint reference first (dance) [-]
     distill: WarmStartConfig = field(
         default_factory=WarmStartConfig
     )  # DAgger rounds of the warm start

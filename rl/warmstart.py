@@ -6,6 +6,9 @@ student's own afterwards; every visited state is labelled with the coach's wrenc
 head's mean, through the bound and the squash (``eta * tanh(raw)``), is regressed onto the labels
 (error in units of the bound, axes with a zero bound skipped); then its initial std is set.
 The fit per axis on held-out states is reported (``warmstart.json`` in the run folder).
+
+``--warmstart-motion`` clones the motion head the same way from a time-indexed reference's joint
+targets (:func:`distill_motion_head`).
 """
 
 from __future__ import annotations
@@ -74,37 +77,41 @@ def _loss(raw: torch.Tensor, target: torch.Tensor, bound: torch.Tensor) -> torch
     return err.square().sum() / used.sum().clamp_min(1.0)
 
 
-def distill_assist_head(
-    actor: A2CFActor, env: G1VecEnv, coach: Coach, cfg: WarmStartConfig = WarmStartConfig()
-) -> dict[str, Any]:
-    """Distil ``coach`` into ``actor``'s assist head in ``env`` (see the module docstring).
+def _dagger(
+    actor: A2CFActor,
+    env: G1VecEnv,
+    cfg: WarmStartConfig,
+    label: Callable[[G1VecEnv], tuple[torch.Tensor, torch.Tensor]],
+    expert: Callable[[torch.Tensor, torch.Tensor, torch.Tensor, int], None],
+    output: Callable[[TensorDict], torch.Tensor],
+    loss: Callable[[torch.Tensor, torch.Tensor, torch.Tensor], torch.Tensor],
+    params: list[torch.nn.Parameter],
+) -> tuple[TensorDict, torch.Tensor, torch.Tensor, int]:
+    """The DAgger loop shared by both heads: ``cfg.rounds`` rounds of ``cfg.steps_per_round`` env
+    steps with the learner acting, every state labelled by ``label(env) -> (target, aux)``;
+    ``expert(actions, target, aux, round)`` edits the actions in place (round 0: the expert's),
+    then ``cfg.epochs`` passes of Adam on ``loss(output(obs), target, aux)`` over ``params``.
 
-    Returns the report: per-axis RMSE [N, Nm] and R^2 on held-out states, the coach's and the
-    warm-started head's mean |wrench| there, dataset size.
+    Returns the held-out part of the last round (obs, target, aux) and the dataset size.
     """
-    if actor.mlp.assist is None:
-        raise ValueError("the warm start needs an assist head (mode a2cf or an ablation)")
     generator = torch.Generator().manual_seed(cfg.seed)
-    optimizer = torch.optim.Adam(actor.mlp.assist.parameters(), lr=cfg.learning_rate)
-    data: dict[str, list] = {"obs": [], "target": [], "bound": [], "round": []}
+    optimizer = torch.optim.Adam(params, lr=cfg.learning_rate)
+    data: dict[str, list] = {"obs": [], "target": [], "aux": [], "round": []}
     obs = env.get_observations()
     for rnd in range(cfg.rounds):
         with torch.no_grad():
             for _ in range(cfg.steps_per_round):
-                state = env.env_state
-                target = coach(env)
-                bound = state.assist_bound.clone()
+                target, aux = label(env)
                 actor.update_normalization(obs)
                 actions = actor(obs, stochastic_output=True)
-                if rnd == 0:
-                    actions[:, g1.NUM_JOINTS :] = _raw_from_wrench(target, bound)
+                expert(actions, target, aux, rnd)
                 data["obs"].append(obs.clone())
                 data["target"].append(target)
-                data["bound"].append(bound)
+                data["aux"].append(aux)
                 data["round"].append(torch.full((target.shape[0],), rnd))
                 obs, _, _, _ = env.step(actions)
         all_obs = torch.cat(data["obs"])
-        target, bound = torch.cat(data["target"]), torch.cat(data["bound"])
+        target, aux = torch.cat(data["target"]), torch.cat(data["aux"])
         rounds = torch.cat(data["round"])
         last = torch.nonzero(rounds == cfg.rounds - 1).flatten()
         held = last[
@@ -117,12 +124,95 @@ def distill_assist_head(
             order = train_ids[torch.randperm(train_ids.numel(), generator=generator)]
             for start in range(0, order.numel(), cfg.batch_size):
                 idx = order[start : start + cfg.batch_size]
-                loss = _loss(_assist_mean(actor, all_obs[idx]), target[idx], bound[idx])
+                value = loss(output(all_obs[idx]), target[idx], aux[idx])
                 optimizer.zero_grad()
-                loss.backward()
+                value.backward()
                 optimizer.step()
+    return all_obs[held], target[held], aux[held], int(target.shape[0])
+
+
+def distill_assist_head(
+    actor: A2CFActor, env: G1VecEnv, coach: Coach, cfg: WarmStartConfig = WarmStartConfig()
+) -> dict[str, Any]:
+    """Distil ``coach`` into ``actor``'s assist head in ``env`` (see the module docstring).
+
+    Returns the report: per-axis RMSE [N, Nm] and R^2 on held-out states, the coach's and the
+    warm-started head's mean |wrench| there, dataset size.
+    """
+    if actor.mlp.assist is None:
+        raise ValueError("the warm start needs an assist head (mode a2cf or an ablation)")
+
+    def label(e: G1VecEnv) -> tuple[torch.Tensor, torch.Tensor]:
+        return coach(e), e.env_state.assist_bound.clone()
+
+    def expert(actions, target, bound, rnd) -> None:
+        if rnd == 0:
+            actions[:, g1.NUM_JOINTS :] = _raw_from_wrench(target, bound)
+
+    obs, target, bound, num = _dagger(
+        actor, env, cfg, label, expert, lambda o: _assist_mean(actor, o), _loss,
+        list(actor.mlp.assist.parameters()),
+    )  # fmt: skip
     actor._set_assist_std(cfg.assist_std)
-    return _report(actor, all_obs[held], target[held], bound[held], cfg, target.shape[0])
+    return _report(actor, obs, target, bound, cfg, num)
+
+
+def distill_motion_head(
+    actor: A2CFActor, env: G1VecEnv, cfg: WarmStartConfig = WarmStartConfig()
+) -> dict[str, Any]:
+    """``--warmstart-motion``: clone the motion head from the task's time-indexed reference.
+
+    The label of a state is the motion action whose PD target is the reference's joint pose of the
+    next step (``env.joint_targets_to_actions(command.reference_joint_pos_rad())``). DAgger as for
+    the assist head: round 0 plays the reference's actions, later rounds the learner's own (with
+    its exploration noise); no assist wrench meanwhile (raw assist 0). Only the motion MLP learns;
+    the motion std is left as configured. Report: per body part RMSE of the cloned joint targets
+    [rad] and R^2 on held-out states.
+    """
+    if env.command_gen.reference_joint_pos_rad() is None:
+        raise ValueError(
+            f"--warmstart-motion needs a time-indexed joint reference; task '{env.task.name}' "
+            "has none (its command gives no reference_joint_pos_rad): use it with dance"
+        )
+    nj = g1.NUM_JOINTS
+
+    def label(e: G1VecEnv) -> tuple[torch.Tensor, torch.Tensor]:
+        target = e.joint_targets_to_actions(e.command_gen.reference_joint_pos_rad())
+        return target, torch.zeros(target.shape[0], 1)
+
+    def expert(actions, target, aux, rnd) -> None:
+        actions[:, nj:] = 0.0
+        if rnd == 0:
+            actions[:, :nj] = target
+
+    def output(o: TensorDict) -> torch.Tensor:
+        return actor(o)[:, :nj]
+
+    def loss(out, target, aux) -> torch.Tensor:
+        return (out - target).square().mean()
+
+    obs, target, _, num = _dagger(
+        actor, env, cfg, label, expert, output, loss, list(actor.mlp.motion.parameters())
+    )
+    with torch.no_grad():
+        scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32)
+        err_rad = (output(obs) - target) * scale
+        var = (target * scale).var(dim=0)
+    parts = {
+        part: {
+            "rmse_rad": float(err_rad[:, idx].square().mean().sqrt()),
+            "r2": 1.0 - float(err_rad[:, idx].square().mean(0).sum() / var[idx].sum()),
+        }
+        for part, idx in g1.BODY_PARTS.items()
+    }
+    return {
+        "config": asdict(cfg),
+        "samples": num,
+        "held_out_samples": int(target.shape[0]),
+        "held_out_fit": parts,
+        "rmse_rad": float(err_rad.square().mean().sqrt()),
+        "r2": 1.0 - float(err_rad.square().mean(0).sum() / var.sum()),
+    }
 
 
 def _report(actor, obs, target, bound, cfg, num_samples) -> dict[str, Any]:

@@ -81,6 +81,9 @@ NUM_JOINTS = len(JOINTS)
 
 JOINT_NAMES: tuple[str, ...] = tuple(j.name for j in JOINTS)
 
+BODY_PARTS: dict[str, slice] = {"legs": slice(0, 12), "waist": slice(12, 15), "arms": slice(15, 29)}
+"""Joint index ranges of the body parts (:data:`JOINTS` order)."""
+
 ACTION_SCALE_FACTOR = 0.25
 """Action a maps to a joint target default + scale * a with scale = 0.25 * effort / Kp."""
 

@@ -11,6 +11,7 @@ from rl.curriculum import (
     AssistStatistics,
     CurriculumConfig,
     CurriculumEvent,
+    histogram_quantile,
     identical_axis_bounds,
     paper_bound_rows,
     update_bound,
@@ -260,3 +261,59 @@ def test_rarely_visited_phases_keep_their_bound_with_min_phase_samples() -> None
     )
     with pytest.raises(ValueError, match="min_phase_samples"):
         CurriculumConfig(min_phase_samples=0)
+
+
+def test_histogram_quantile_is_the_upper_bin_edge() -> None:
+    hist = torch.zeros(3, 10, dtype=torch.float64)
+    hist[0, 0] = 8.0  # 80 % zero
+    hist[0, 9] = 2.0  # 20 % saturated
+    hist[1, 4] = 1.0
+    torch.testing.assert_close(
+        histogram_quantile(hist, 0.9), torch.tensor([1.0, 0.5, 0.0], dtype=torch.float64)
+    )
+    torch.testing.assert_close(
+        histogram_quantile(hist, 0.5)[0], torch.tensor(0.1, dtype=torch.float64)
+    )
+
+
+def _as_needed_extras(num_envs: int, helped: int, eta: torch.Tensor) -> dict:
+    """One step in phase 0: ``helped`` envs get the full bound (a saturated helper), the rest 0."""
+    wrench = torch.zeros(num_envs, 6)
+    wrench[:helped] = eta
+    return {
+        "applied_wrench": wrench,
+        "phase": torch.zeros(num_envs, dtype=torch.long),
+        "bound": eta.expand(num_envs, 6).clone(),
+    }
+
+
+def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
+    """The interplay of issue 13: a helper that is zero inside its tolerance band and saturates
+    beyond it has a small mean |F|, so the paper's rule shrinks its bound every iteration although
+    it uses all of it where help is needed; the quantile measure holds the bound while more than
+    10 % of the states need it, and shrinks it once they do not."""
+    eta0 = ETA0[:1]
+    paper = CurriculumEvent(AssistCurriculum(eta0), steps_per_iteration=1)
+    quant = CurriculumEvent(
+        AssistCurriculum(eta0, CurriculumConfig(force_measure="quantile")), steps_per_iteration=1
+    )
+    for _ in range(5):
+        p_row = paper.on_step(_as_needed_extras(100, 20, paper.curriculum.eta[0]), 0.0)
+        q_row = quant.on_step(_as_needed_extras(100, 20, quant.curriculum.eta[0]), 0.0)
+    torch.testing.assert_close(paper.curriculum.eta, eta0 * 0.8**5)
+    torch.testing.assert_close(quant.curriculum.eta, eta0)
+    assert p_row["mean_applied_norm"][0] == pytest.approx(0.2 * float(NORM0[0]) * 0.8**4, rel=1e-5)
+    assert q_row["applied_ratio_quantile"] == [1.0]
+    # help needed in 5 % of the states only: below the 10 % the quantile watches -> shrink
+    q_row = quant.on_step(_as_needed_extras(100, 5, quant.curriculum.eta[0]), 0.0)
+    torch.testing.assert_close(quant.curriculum.eta, eta0 * 0.8)
+    # the histogram is checkpointed with the statistics
+    quant.stats.add(_as_needed_extras(10, 10, quant.curriculum.eta[0]))
+    state = quant.stats.state_dict()
+    other = AssistStatistics(1)
+    other.load_state_dict(state)
+    torch.testing.assert_close(other.ratio_hist, quant.stats.ratio_hist)
+    with pytest.raises(ValueError, match="force_measure"):
+        CurriculumConfig(force_measure="median")
+    with pytest.raises(ValueError, match="force_quantile"):
+        CurriculumConfig(force_quantile=1.0)

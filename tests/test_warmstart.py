@@ -112,3 +112,34 @@ def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
     with pytest.raises(ValueError, match="no time-indexed reference"):
         train(dataclasses.replace(cfg, task="walk", warmstart=str(walk_dir), run_name="walk"),
               verbose=False)  # fmt: skip
+
+
+def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_one(tmp_path):
+    """--warmstart-motion: the motion head's joint targets match the reference's next frame on
+    held-out states (the untrained head is nowhere near), also in mode baseline; a task without a
+    time-indexed joint reference is refused with a message naming the flag."""
+    from rl.runner import build_training
+    from rl.warmstart import distill_motion_head
+
+    cfg = TrainConfig(task="dance", mode="baseline", env=EnvConfig(num_envs=16, num_threads=2),
+                      model=TINY_MODEL, ppo=PPOConfig(num_mini_batches=2))  # fmt: skip
+    env, runner, _ = build_training(cfg, run_dir=None)
+    learner = runner.env
+    target = env.joint_targets_to_actions(env.command_gen.reference_joint_pos_rad())
+    before = (runner.alg.actor(env.get_observations()) - target).square().mean()
+    report = distill_motion_head(runner.alg.actor, learner,
+                                 WarmStartConfig(rounds=2, steps_per_round=24, epochs=20))  # fmt: skip
+    assert report["r2"] > 0.5, report
+    obs = env.get_observations()
+    target = env.joint_targets_to_actions(env.command_gen.reference_joint_pos_rad())
+    after = (runner.alg.actor(obs) - target).square().mean()
+    assert after < 0.5 * before
+    assert set(report["held_out_fit"]) == {"legs", "waist", "arms"}
+    env.close()
+    stand = TrainConfig(mode="baseline", warmstart_motion=True, iterations=1, num_steps_per_env=8,
+                        env=EnvConfig(num_envs=4, num_threads=2), model=TINY_MODEL,
+                        ppo=PPOConfig(num_mini_batches=2, num_learning_epochs=1),
+                        out=str(tmp_path), run_name="stand", export_onnx=False)  # fmt: skip
+    with pytest.raises(ValueError, match="--warmstart-motion needs a time-indexed joint reference"):
+        train(stand, verbose=False)
+    assert not (tmp_path / "stand").exists()  # refused before the run folder is made

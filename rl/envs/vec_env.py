@@ -205,6 +205,10 @@ class G1VecEnv(VecEnv):
         """Current observation groups (see ``rl_contract.md``)."""
         return self._obs
 
+    def joint_targets_to_actions(self, joint_pos_rad: torch.Tensor) -> torch.Tensor:
+        """The motion actions (N, 29) whose PD targets are ``joint_pos_rad`` (N, 29) [rad]."""
+        return (joint_pos_rad.float() - self._stand_rad) / self._action_scale
+
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
         """Apply actions (N, 35) for one policy step; returns (obs, rewards, dones, extras)."""
         n, lay, cfg = self.num_envs, self.layout, self.cfg

@@ -59,6 +59,11 @@ class Command(Component, ABC):
         from an artifact needs it)."""
         return None
 
+    def reference_joint_pos_rad(self) -> torch.Tensor | None:
+        """Per env, the reference's joint pose (N, 29) [rad] for the state after the next step
+        (what ``--warmstart-motion`` clones the motion head onto); None without a reference."""
+        return None
+
 
 @dataclass(frozen=True)
 class NoCommandConfig:

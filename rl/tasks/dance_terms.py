@@ -35,7 +35,7 @@ BUILTIN_CLIP = "builtin"
 """Clip source name of the built-in choreography."""
 COMMAND_DIM = 3 + 4 + g1.NUM_JOINTS
 """Width of the dance command [dp (3), dq (4), q (29)]."""
-BODY_PARTS: dict[str, slice] = {"legs": slice(0, 12), "waist": slice(12, 15), "arms": slice(15, 29)}
+BODY_PARTS = g1.BODY_PARTS
 """Joint index ranges of the body parts (``robots.g1.JOINTS`` order)."""
 
 
@@ -320,6 +320,10 @@ class ClipTrackingCommand(Command):
         """Per env, the time of its current frame along its clip (N,) [s] (for an oracle
         artifact's coach: the built-in dance artifact of ``solve-dance`` has the same frames)."""
         return (self.frame(0) - self.library.start[self.clip]).double() * self.library.dt_s
+
+    def reference_joint_pos_rad(self) -> torch.Tensor:
+        """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
+        return torch.as_tensor(self.library.qpos[self.frame(ahead=1).numpy(), 7:]).float()
 
     def reference_pose(self, ahead: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
         """Reference pelvis position (N, 3) [m] (with each env's floor offset) and orientation
