@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 import torch
 
 from rl.envs.state import EnvState, quat_rotate, world_to_heading
@@ -109,23 +110,40 @@ class ArtifactCoach:
     and clipped to the env's bound."""
 
     def __init__(self, folder: str, cfg: ArtifactCoachConfig = ArtifactCoachConfig()) -> None:
+        from optimal_control.artifact import OracleArtifact
         from optimal_control.coach import CoachConfig, coach_from_artifact
 
+        self.artifact = OracleArtifact.load(folder)
         self.coach = coach_from_artifact(
-            folder,
+            self.artifact,
             CoachConfig(band_position_m=cfg.band_position_m,
                         band_orientation_rad=cfg.band_orientation_rad),
         )  # fmt: skip
 
+    def anchor_time_s(self, phase: str | None) -> float:
+        """Time of the artifact's first frame in ``phase`` [s] (0 for None)."""
+        if phase is None:
+            return 0.0
+        names = list(self.artifact.phase_names)
+        if phase not in names:
+            raise ValueError(
+                f"the task's reference starts at phase '{phase}', which the oracle artifact "
+                f"(phases {names}) does not have: pass the artifact of the task's own reference"
+            )
+        ref = self.artifact.reference
+        return float(np.flatnonzero(np.asarray(ref.phase) == names.index(phase))[0] * ref.dt)
+
     def __call__(self, env: G1VecEnv) -> torch.Tensor:
         """Wrench (N, 6) [N, Nm] for the env's current state."""
-        time_s = env.command_gen.reference_time_s()
+        command = env.command_gen
+        time_s = command.reference_time_s()
         if time_s is None:
             raise ValueError(
                 f"task '{env.task.name}' has no time-indexed reference (its command gives no "
                 "reference_time_s), so an artifact's coach cannot follow it: use --warmstart "
-                "posture, or the task whose reference the artifact solved (dance)"
+                "posture, or the task whose reference the artifact solved (dance, backflip)"
             )
+        time_s = (time_s + self.anchor_time_s(command.reference_anchor_phase)).clamp_min(0.0)
         s = env.env_state
         omega_w = quat_rotate(s.base_quat_w, s.base_ang_vel_b)
         wrench_w = self.coach.wrench(s.base_pos_w, s.base_quat_w, s.base_lin_vel_w, omega_w,

@@ -341,6 +341,14 @@ def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str,
     if cfg.warmstart:
         if cfg.warmstart in COACHES:
             coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
+        elif env.command_gen.reference_time_s() is None:
+            # walk: the artifact solved one commanded walk, the task draws random commands, so
+            # there is no time along the artifact to follow; its eta0 still sets the bounds
+            coach = COACHES["posture"](env)
+            source = (
+                f"eta0 of the oracle artifact {cfg.warmstart}; coach: built-in 'posture' (task "
+                f"'{env.task.name}' has no time-indexed reference for the artifact's coach)"
+            )
         else:
             coach = ArtifactCoach(cfg.warmstart)
             source = f"coach and eta0 of the oracle artifact {cfg.warmstart} (as needed: banded)"

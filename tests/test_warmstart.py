@@ -109,9 +109,14 @@ def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
     _, walk_dir = solve_walk(
         WalkConfig(duration=2.5), dataclasses.replace(quick, out=str(tmp_path / "walk"))
     )
-    with pytest.raises(ValueError, match="no time-indexed reference"):
-        train(dataclasses.replace(cfg, task="walk", warmstart=str(walk_dir), run_name="walk"),
-              verbose=False)  # fmt: skip
+    # walk draws random commands: the artifact sets eta0, the built-in posture coach is distilled
+    walk = train(dataclasses.replace(cfg, task="walk", warmstart=str(walk_dir), run_name="walk"),
+                 verbose=False).run_dir  # fmt: skip
+    report = json.loads((walk / "warmstart.json").read_text())
+    assert "coach: built-in 'posture'" in report["coach"]
+    eta0 = json.loads((walk / "config.json").read_text())["eta0"]
+    oracle = json.loads((walk_dir / "oracle.json").read_text())["eta0"]
+    torch.testing.assert_close(torch.tensor(eta0), torch.tensor(oracle).max(0).values[None].float())
 
 
 def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_one(tmp_path):
@@ -143,3 +148,43 @@ def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_
     with pytest.raises(ValueError, match="--warmstart-motion needs a time-indexed joint reference"):
         train(stand, verbose=False)
     assert not (tmp_path / "stand").exists()  # refused before the run folder is made
+
+
+def test_artifact_coach_follows_the_backflip_from_its_start_command(tmp_path, g1_pin):
+    """The backflip's reference time counts from the start command, which the artifact's
+    reference reaches at the first frame of its Crouch; before the start the coach holds the
+    first frame. An artifact without that phase is refused by name."""
+    import numpy as np
+
+    from optimal_control.artifact import build_artifact
+    from optimal_control.reference import static_reference
+    from optimal_control.wrench_qp import WrenchQP, WrenchQPConfig
+    from rl.coaches import ArtifactCoach
+    from rl.tasks import backflip_terms as bt
+    from rl.tasks.backflip import BACKFLIP
+
+    ref = static_reference(g1_pin.q_stand, 10, 0.02, name="flip")
+    ref.phase = np.array([0, 0, 0, 1, 1, 2, 2, 3, 3, 4])
+    ref.phase_names = bt.BACKFLIP_PHASES
+    ref.q[:, 0] = np.linspace(0.0, -0.45, 10)  # the pelvis moves back along the reference
+    ref.validate()
+    profile = {a: WrenchQP(WrenchQPConfig(alpha=a)).solve_reference(ref) for a in (1.0, 0.5)}
+    folder = build_artifact("backflip", ref, profile).save(tmp_path / "flip")
+    coach = ArtifactCoach(str(folder))
+    assert coach.anchor_time_s("crouch") == pytest.approx(0.06)
+    env = make_env(quiet(BACKFLIP), 4, num_threads=1)
+    try:
+        env.env_state  # noqa: B018 - the state exists before any step
+        command = env.command_gen
+        assert command.reference_anchor_phase == "crouch"
+        assert (command.reference_time_s() < 0).all()  # waiting for the start
+        held = coach(env)  # on the first frame: the standing robot is within the band
+        assert torch.isfinite(held).all() and held.abs().max() < 1e-6
+        command.time_s[:] = command.delay_s + 0.12  # 0.18 s along the reference: x = -0.18
+        ahead = coach(env)
+        assert (ahead[:, 0] < 0).all()  # pulled back along the reference (heading frame: -x)
+        assert (ahead.abs() <= env.env_state.assist_bound + 1e-6).all()
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="does not have"):
+        coach.anchor_time_s("jump_start")

@@ -196,6 +196,8 @@ class StartCommandConfig:
 class StartCommand(Command):
     """Per-env timer against a start delay drawn at each reset (:class:`StartCommandConfig`)."""
 
+    reference_anchor_phase = "crouch"  # the oracle's backflip starts its motion with the Crouch
+
     def __init__(self, cfg: StartCommandConfig, num_envs: int, generator: torch.Generator) -> None:
         self.cfg = cfg
         self.generator = generator
@@ -214,6 +216,12 @@ class StartCommand(Command):
         """Advance the timers by ``dt_s`` [s]; the command (N, 1) is 1 once the delay passed."""
         self.time_s += dt_s
         return (self.time_s >= self.delay_s).to(torch.float32).unsqueeze(-1)
+
+    def reference_time_s(self) -> torch.Tensor:
+        """Time since the start command (N,) [s], negative while the robot waits: an oracle
+        artifact's coach follows its reference from the start of its Crouch (the FSM's phases
+        switch on the robot's state, so an env may run ahead of or behind this clock)."""
+        return (self.time_s - self.delay_s).double()
 
     def state_dict(self) -> dict[str, Any]:
         """Timers and delays."""

@@ -49,14 +49,20 @@ class Component:  # noqa: B024 - a base of optional hooks; subclasses add the ab
 class Command(Component, ABC):
     """Produces the task command (N, C) the policy observes and rewards read."""
 
+    reference_anchor_phase: str | None = None
+    """Phase of the oracle artifact whose first frame is time 0 of :meth:`reference_time_s`
+    (None: the artifact's first frame). The backflip counts from its start command, which the
+    artifact's reference reaches at the start of its Crouch."""
+
     @abstractmethod
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
         """Advance by one policy step of ``dt_s`` [s] and return the command (N, C)."""
 
     def reference_time_s(self) -> torch.Tensor | None:
         """Per env, the time along the task's time-indexed reference motion (N,) [s], matching
-        the oracle artifact of the same reference; None when the task has none (a coach built
-        from an artifact needs it)."""
+        the oracle artifact of the same reference (counted from :attr:`reference_anchor_phase`;
+        negative: before it); None when the task has none (a coach built from an artifact needs
+        it)."""
         return None
 
     def reference_joint_pos_rad(self) -> torch.Tensor | None:
