@@ -138,3 +138,24 @@ def test_two_training_iterations_and_eval_with_task_metrics(tmp_path) -> None:
                 "base_orientation_rad"):  # fmt: skip
         assert math.isfinite(metrics[key]) and metrics[key] >= 0.0
     assert metrics["steps"] >= 1 and (result.run_dir / "eval_dance.png").is_file()
+
+
+def test_eval_skill_charges_falls_like_the_training_measure(tmp_path) -> None:
+    """A policy that tracks well until it falls has not learned the dance: eval's
+    ``skill_learned`` charges a fall ``fall_error_rad`` (it used to average the error over the
+    steps before the falls only, and said "learned" with every episode fallen)."""
+    env = make_env(quiet(DANCE), 2, num_threads=1)
+    try:
+        evaluator = DANCE.evaluation.build(env)
+        active = torch.ones(2, dtype=torch.bool)
+        env.step(torch.zeros(2, env.num_actions))
+        no_timeout = {"time_outs": torch.zeros(2)}
+        evaluator.on_step(env, active, torch.zeros(2), no_timeout)  # both on the reference
+        evaluator.on_step(env, active, torch.tensor([1.0, 0.0]), no_timeout)  # env 0 falls
+        metrics = evaluator.finish(tmp_path)
+    finally:
+        env.close()
+    assert metrics["joint_all_rad"] < DANCE.skill.threshold_rad  # tracking was fine meanwhile
+    assert metrics["fell_fraction"] == 0.5
+    assert metrics["skill_error_rad"] > (1.0 + 0.0) / 2 - 1e-6
+    assert metrics["skill_learned"] is False

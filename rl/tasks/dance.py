@@ -53,13 +53,21 @@ class DanceEvaluator:
         self.command = env.command.clone()  # targets the state after the next step
         self.ref_pos, self.ref_quat = env.command_gen.reference_pose(ahead=1)
         self.rows: list[dict[str, float]] = []
+        # per env: its first episode fell, and its joint error at its last step (as training's
+        # TrackingSkill charges an episode: the last error if it ran on, fall_error_rad if it fell)
+        self.fell = torch.zeros(env.num_envs, dtype=torch.bool)
+        self.last_error_rad = torch.zeros(env.num_envs)
 
     def on_step(self, env: Any, active: torch.Tensor, dones: torch.Tensor, extras: dict) -> None:
         """Errors of the envs still in their first episode (not those reset in this step)."""
         s = env.env_state
-        keep = active & ~dones.bool().cpu()
+        done = dones.bool().cpu()
+        self.fell |= active & done & ~extras["time_outs"].bool().cpu()
+        keep = active & ~done
+        all_err = (s.joint_pos_rad - self.command[:, 7:]).abs()
+        self.last_error_rad = torch.where(keep, all_err.mean(dim=-1), self.last_error_rad)
         if keep.any():
-            err = (s.joint_pos_rad - self.command[:, 7:]).abs()[keep]
+            err = all_err[keep]
             row = {
                 f"joint_{part}_rad": float(err[:, idx].mean())
                 for part, idx in dt.BODY_PARTS.items()
@@ -88,8 +96,14 @@ class DanceEvaluator:
             k: float((torch.tensor([r[k] for r in self.rows]) * weight).sum() / weight.sum())
             for k in keys
         }
-        out["skill_threshold_rad"] = self._env.task.skill.threshold_rad
-        out["skill_learned"] = out["joint_all_rad"] < out["skill_threshold_rad"]
+        skill = self._env.task.skill
+        out["skill_threshold_rad"] = skill.threshold_rad
+        # the training measure's per-episode error: a fall costs fall_error_rad, so a policy
+        # that tracks well until it falls has not learned the dance
+        episode_err = torch.where(self.fell, skill.fall_error_rad, self.last_error_rad)
+        out["skill_error_rad"] = float(episode_err.mean())
+        out["fell_fraction"] = float(self.fell.float().mean())
+        out["skill_learned"] = out["skill_error_rad"] < skill.threshold_rad
         out["steps"] = len(self.rows)
         plot = Path(run_dir) / self.cfg.plot_name
         self._plot(plot, keys)
