@@ -290,6 +290,7 @@ class AssistStatistics:
         self.norm_sum = torch.zeros(num_phases, dtype=torch.float64, device=device)
         self.count = torch.zeros(num_phases, dtype=torch.float64, device=device)
         self.ratio_hist = torch.zeros(num_phases, RATIO_BINS, dtype=torch.float64, device=device)
+        self.axis_abs_sum = torch.zeros(num_phases, 6, dtype=torch.float64, device=device)
         self.force_sum_n = 0.0
         self.steps = 0
 
@@ -307,6 +308,7 @@ class AssistStatistics:
         phase = phase.to(self.norm_sum.device)
         self.norm_sum.index_add_(0, phase, norm)
         self.count.index_add_(0, phase, torch.ones_like(norm))
+        self.axis_abs_sum.index_add_(0, phase, wrench.double().abs().to(norm.device))
         if "bound" in assist:
             eta = torch.linalg.vector_norm(assist["bound"].double(), dim=-1).to(norm.device)
             ratio = torch.where(eta > 0, norm / eta.clamp_min(1e-12), 0.0).clamp(0.0, 1.0)
@@ -330,6 +332,7 @@ class AssistStatistics:
         self.norm_sum.zero_()
         self.count.zero_()
         self.ratio_hist.zero_()
+        self.axis_abs_sum.zero_()
         self.force_sum_n = 0.0
         self.steps = 0
 
@@ -339,6 +342,7 @@ class AssistStatistics:
             "norm_sum": self.norm_sum.clone(),
             "count": self.count.clone(),
             "ratio_hist": self.ratio_hist.clone(),
+            "axis_abs_sum": self.axis_abs_sum.clone(),
             "force_sum_n": self.force_sum_n,
             "steps": self.steps,
         }
@@ -347,8 +351,9 @@ class AssistStatistics:
         """Restore :meth:`state_dict` output."""
         self.norm_sum.copy_(state["norm_sum"])
         self.count.copy_(state["count"])
-        if "ratio_hist" in state:  # checkpoints before the quantile measure have none
-            self.ratio_hist.copy_(state["ratio_hist"])
+        for key in ("ratio_hist", "axis_abs_sum"):  # older checkpoints have neither
+            if key in state:
+                getattr(self, key).copy_(state[key])
         self.force_sum_n = float(state["force_sum_n"])
         self.steps = int(state["steps"])
 
@@ -411,6 +416,7 @@ class CurriculumEvent:
                     self.stats.norm_sum,
                     self.stats.count,
                     self.stats.ratio_hist.reshape(-1),
+                    self.stats.axis_abs_sum.reshape(-1),
                     torch.tensor(
                         [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum, 1.0],
                         dtype=torch.float64,
@@ -420,8 +426,10 @@ class CurriculumEvent:
         )
         p = self.curriculum.num_phases
         norm_sum, count = sums[:p], sums[p : 2 * p]
-        hist = sums[2 * p : 2 * p + p * RATIO_BINS].reshape(p, RATIO_BINS)
-        force_sum, steps, skill_sum, processes = sums[2 * p + p * RATIO_BINS :].tolist()
+        hist_end = 2 * p + p * RATIO_BINS
+        hist = sums[2 * p : hist_end].reshape(p, RATIO_BINS)
+        axis_abs = sums[hist_end : hist_end + 6 * p].reshape(p, 6) / count.clamp(min=1.0)[:, None]
+        force_sum, steps, skill_sum, processes = sums[hist_end + 6 * p :].tolist()
         # A phase seen in only a few samples gives a noisy |F|; below min_phase_samples it
         # counts as unvisited (keeps its bound): rare phases are not shrunk by noise.
         visited = count >= self.curriculum.cfg.min_phase_samples
@@ -437,6 +445,7 @@ class CurriculumEvent:
             "applied_force_n": force_sum / max(steps, 1.0),
             "mean_applied_norm": mean_norm.tolist(),
             "applied_ratio_quantile": ratio_q.tolist(),
+            "applied_abs_per_axis": axis_abs.float().tolist(),
         }
         self.history.append(row)
         self.iteration += 1

@@ -304,6 +304,8 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
     torch.testing.assert_close(quant.curriculum.eta, eta0)
     assert p_row["mean_applied_norm"][0] == pytest.approx(0.2 * float(NORM0[0]) * 0.8**4, rel=1e-5)
     assert q_row["applied_ratio_quantile"] == [1.0]
+    # per axis: the mean |F| over the phase's samples (20 % at the full bound)
+    torch.testing.assert_close(torch.tensor(q_row["applied_abs_per_axis"][0]), 0.2 * eta0[0])
     # help needed in 5 % of the states only: below the 10 % the quantile watches -> shrink
     q_row = quant.on_step(_as_needed_extras(100, 5, quant.curriculum.eta[0]), 0.0)
     torch.testing.assert_close(quant.curriculum.eta, eta0 * 0.8)

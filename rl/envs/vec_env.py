@@ -446,11 +446,13 @@ class G1VecEnv(VecEnv):
             "Curriculum/assist_enabled": float(row["assist_enabled"]),
             "Curriculum/less_assist_reward": float(row["less_assist_reward"]),
         }
-        for phase, bounds, norm in zip(
-            self.phase_names, row["eta"], row["applied_norm"], strict=True
-        ):
-            for axis, value in zip(WRENCH_AXES, bounds, strict=True):
+        for phase, bounds, norm, applied in zip(
+            self.phase_names, row["eta"], row["applied_norm"], row["applied_abs_per_axis"],
+            strict=True,
+        ):  # fmt: skip
+            for axis, value, used in zip(WRENCH_AXES, bounds, applied, strict=True):
                 log[f"Curriculum/eta_{phase}_{axis}"] = float(value)
+                log[f"Curriculum/applied_abs_{phase}_{axis}"] = float(used)
             log[f"Curriculum/applied_wrench_norm_{phase}"] = float(norm)
         return log
 
