@@ -12,8 +12,14 @@ from optimal_control.backflip.audit import audit_solution
 from optimal_control.backflip.config import AIR_PHASE, BackflipConfig, tiny_hop_config
 from optimal_control.backflip.sagittal import NR, build_sagittal_model
 from optimal_control.backflip.solve import InfeasibleBackflipError, solve_backflip_to
-from optimal_control.backflip.trajectory import sample_solution, wrench_body_to_world_com
-from optimal_control.backflip.transcription import make_grid
+from optimal_control.backflip.trajectory import (
+    LIMIT_RATIO_TOL,
+    fine_grid_limit_report,
+    sample_solution,
+    sample_times_s,
+    wrench_body_to_world_com,
+)
+from optimal_control.backflip.transcription import _between_knot_limit_rows, make_grid
 
 # a small vertical hop (no turn) on a coarse grid: the same NLP, solved in seconds
 TINY_HOP = dataclasses.replace(tiny_hop_config(), max_iter=200, cache_dir="")
@@ -116,6 +122,151 @@ def test_sampling_reproduces_knots_and_zero_air_forces(hop, model):
     assert ref.contacts[flip.phase == AIR_PHASE].sum() == 0
 
 
+def test_effort_limits_are_the_urdfs(model):
+    """The TO plans within the URDF's effort limits: 35 Nm at the ankle pitch (not the 50 Nm of
+    the two-motor linkage in robots.g1's actuator table)."""
+    from robots import g1
+
+    urdf = model.robot.model.effortLimit[model.robot.joint_v_index]
+    np.testing.assert_array_equal(model.effort_limit_nm, urdf)
+    for name in ("left_ankle_pitch_joint", "waist_pitch_joint"):
+        assert model.effort_limit_nm[g1.JOINT_NAMES.index(name)] == pytest.approx(35.0)
+
+
+def test_bernstein_rows_bound_the_interpolant_between_knots():
+    """The inner Bernstein control points bound the collocation's cubic position and quadratic
+    speed on the whole interval; knots alone do not (a knot-feasible interval overshoots)."""
+    rng = np.random.default_rng(1)
+    s = np.linspace(0.0, 1.0, 201)[:, None]
+    for _ in range(50):
+        h = rng.uniform(0.01, 0.05)
+        r0, rd0 = rng.normal(size=NR), rng.normal(scale=10.0, size=NR)
+        a0, a1 = rng.normal(scale=500.0, size=(2, NR))
+        rd1 = rd0 + h / 2 * (a0 + a1)
+        r1 = r0 + h * rd0 + h**2 / 6 * (2 * a0 + a1)
+        pos, speed = (
+            np.asarray(x).reshape(-1, NR - 3)
+            for x in _between_knot_limit_rows(
+                np.stack([r0, r1], 1), np.stack([rd0, rd1], 1), np.stack([a0, a1], 1), [h]
+            )
+        )
+        t = s * h
+        slope = (a1 - a0) / h
+        rd_t = (rd0 + a0 * t + slope * t**2 / 2)[:, 3:]
+        r_t = (r0 + rd0 * t + a0 * t**2 / 2 + slope * t**3 / 6)[:, 3:]
+        hull_r = np.stack([r0[3:], r1[3:], *pos])
+        hull_v = np.stack([rd0[3:], rd1[3:], *speed])
+        assert np.all(r_t <= hull_r.max(0) + 1e-12) and np.all(r_t >= hull_r.min(0) - 1e-12)
+        assert np.all(rd_t <= hull_v.max(0) + 1e-12) and np.all(rd_t >= hull_v.min(0) - 1e-12)
+    # speed 1 at both knots, accelerating then decelerating: the peak between them is 1.5
+    h, lim = 0.02, 1.0
+    rd = np.zeros((NR, 2))
+    rd[3:] = lim
+    rdd = np.zeros((NR, 2))
+    rdd[3:, 0], rdd[3:, 1] = 100.0, -100.0
+    _, speed = _between_knot_limit_rows(np.zeros((NR, 2)), rd, rdd, [h])
+    assert np.all(np.asarray(speed) > lim)  # the constraint sees what the knots miss
+
+
+def test_torque_rows_keep_the_margin(hop):
+    """Knot and midpoint torque rows are bounded by (1 - margin) x alpha x tau_max."""
+    tr = hop.transcription
+    (a, b) = next((a, b) for name, a, b in tr.groups if name.startswith("torque limits"))
+    assert tr.ubg[a:b].max() == pytest.approx(1.0 - TINY_HOP.torque_limit_margin)
+    names = [name for name, _, _ in tr.groups]
+    assert any("position limits between knots" in name for name in names)
+    assert any("speed limits between knots" in name for name in names)
+    with pytest.raises(ValueError, match="torque_limit_margin"):
+        BackflipConfig(torque_limit_margin=1.0).validate()
+
+
+def test_torque_refinement_tightens_only_the_overshooting_interval(hop, model):
+    """The refinement re-solve tightens the knot and midpoint torque rows of an interval whose
+    1 kHz interpolant exceeds the bound, on that joint only, by the overshoot (+ the target)."""
+    from optimal_control.backflip.solve import (
+        TORQUE_REFINE_TARGET,
+        refine_torque_bounds,
+        torque_overshoot,
+    )
+
+    tr = hop.transcription
+    over = torque_overshoot(tr, hop.solution, model)
+    assert over.shape == (tr.grid.num_intervals, 29)
+    limits = fine_grid_limit_report(hop.solution, tr.grid, model)
+    moved_max = (over + tr.torque_limit_fraction).max()
+    assert moved_max == pytest.approx(limits["effort"]["max_ratio"], abs=1e-9)
+    fake = np.full_like(over, -1.0)
+    fake[2, 3] = 0.05
+    lbg, ubg, count = refine_torque_bounds(tr, tr.lbg, tr.ubg, fake)
+    assert count == 1
+    name, a, b = next(g for g in tr.groups if g[0].startswith("torque limits"))
+    cut = (tr.ubg[a:b] - ubg[a:b]).reshape(-1, 29)
+    hit = (tr.torque_sample_u >= 2) & (tr.torque_sample_u <= 3)
+    assert hit.sum() == 3  # knots 2 and 3 and the midpoint of interval 2
+    np.testing.assert_allclose(cut[hit, 3], 2 * 0.05 + TORQUE_REFINE_TARGET, atol=1e-12)
+    assert np.count_nonzero(cut) == 3
+    np.testing.assert_allclose((lbg[a:b] - tr.lbg[a:b]).reshape(-1, 29)[hit, 3], cut[hit, 3])
+    # the cut is stored with a solution and re-applied to a warm start's problem
+    from optimal_control.backflip.solve import apply_torque_cut, torque_cut
+
+    stored = torque_cut(tr, ubg)
+    lbg2, ubg2 = apply_torque_cut(tr, stored)
+    np.testing.assert_allclose(ubg2, ubg, atol=1e-15)
+    np.testing.assert_allclose(lbg2, lbg, atol=1e-15)
+
+
+def test_solution_file_keeps_the_torque_cut(hop, tmp_path):
+    """A refined solution's torque cut survives the npz round trip (a warm start re-applies it);
+    a file without one (older solutions) still loads."""
+    from optimal_control.backflip.solve import load_solution, save_solution
+
+    cut = np.zeros((len(hop.transcription.torque_sample_u), 29))
+    cut[1, 3] = 0.02
+    sol = dataclasses.replace(hop.solution, torque_cut=cut)
+    back = load_solution(save_solution(sol, tmp_path / "a.npz"), "test")
+    np.testing.assert_array_equal(back.torque_cut, cut)
+    plain = dataclasses.replace(hop.solution, torque_cut=None)
+    assert load_solution(save_solution(plain, tmp_path / "b.npz"), "test").torque_cut is None
+
+
+def test_quarter_point_torque_rows(model):
+    """--quarter-point-torques adds two torque samples per interval (MX build: seconds)."""
+    from optimal_control.backflip.transcription import build_transcription
+
+    cfg = dataclasses.replace(TINY_HOP, symbolic="MX", quarter_point_torques=True)
+    tr = build_transcription(model, cfg)
+    n = tr.grid.num_knots
+    assert len(tr.torque_sample_u) == n + 3 * (n - 1)
+    name, a, b = next(g for g in tr.groups if g[0].startswith("torque limits"))
+    assert b - a == 29 * len(tr.torque_sample_u)
+    assert np.isclose(tr.torque_sample_u, 0.25).sum() == 1
+
+
+def test_samples_end_at_the_final_knot(hop, model):
+    """The artifact's uniform samples end on the final knot (the landed rest pose); the MuJoCo
+    sampling keeps its exact step instead."""
+    grid = make_grid(TINY_HOP)
+    sol = hop.solution
+    t_end = sol.knot_times_s(grid)[-1]
+    flip = sample_solution(sol, grid, model, 50.0)
+    assert flip.time_s[-1] == pytest.approx(t_end, abs=1e-12)
+    np.testing.assert_allclose(flip.r[-1], sol.r[-1], atol=1e-9)
+    assert flip.dt_s <= 1.0 / 50.0 + 1e-12
+    np.testing.assert_allclose(np.diff(flip.time_s), flip.dt_s, atol=1e-12)
+    flip.to_reference()  # uniform: the Reference accepts it
+    sim = sample_solution(sol, grid, model, 200.0, through_end=False)
+    assert sim.dt_s == pytest.approx(0.005, abs=1e-15) and sim.time_s[-1] <= t_end
+    assert sample_times_s(0.1, 10.0)[-1] == pytest.approx(0.1)
+    assert len(sample_times_s(0.1, 10.0)) == 2
+    assert len(sample_times_s(0.105, 10.0)) == 3
+
+
+def test_hop_is_within_the_limits_between_knots(hop, model):
+    limits = fine_grid_limit_report(hop.solution, make_grid(TINY_HOP), model)
+    assert limits["within_limits"], limits
+    assert limits["effort"]["max_ratio"] <= 1.0 + LIMIT_RATIO_TOL
+
+
 def test_wrench_conversion_moves_torque_to_the_com():
     q = np.zeros((1, 36))
     q[0, 6] = 1.0  # identity orientation
@@ -136,6 +287,13 @@ def test_full_backflip_solves_audits_and_needs_little_help(model):
     assert report.passed, report.failures()
     assert abs(result.solution.r[-1, 2] + 2 * np.pi) < 1e-6
     assert report.extra["flight_time_s"] > 0.3
+    # within the URDF's effort, speed and position limits between the knots too (1 kHz)
+    limits = fine_grid_limit_report(result.solution, result.transcription.grid, model)
+    assert limits["within_limits"], limits
+    flip = sample_solution(result.solution, result.transcription.grid, model, 50.0)
+    assert flip.time_s[-1] == pytest.approx(
+        result.solution.knot_times_s(result.transcription.grid)[-1], abs=1e-12
+    )
 
 
 def test_eta0_comparison_with_the_paper_table():
@@ -165,7 +323,7 @@ def test_playback_runs_the_hop_in_mujoco(hop, model):
     grid = make_grid(TINY_HOP)
     with pytest.raises(ValueError, match="MuJoCo step"):
         play_back(sample_solution(hop.solution, grid, model, 50.0), True)
-    flip = sample_solution(hop.solution, grid, model, 200.0)
+    flip = sample_solution(hop.solution, grid, model, 200.0, through_end=False)
     result, qpos = play_back(
         flip, False, PlaybackConfig(settle_s=0.2), turn_rad=0.0, gain_scale=3.0
     )
@@ -192,7 +350,7 @@ def test_flight_alone_follows_the_reference_and_diagnostics_are_reported(hop, mo
         play_flight,
     )
 
-    flip = sample_solution(hop.solution, make_grid(TINY_HOP), model, 200.0)
+    flip = sample_solution(hop.solution, make_grid(TINY_HOP), model, 200.0, through_end=False)
     flight = play_flight(flip, True, PlaybackConfig(), gain_scale=3.0)
     assert abs(flight.pitch_error_at_touchdown_rad) < 0.05
     assert abs(flight.height_error_at_touchdown_m) < 0.02

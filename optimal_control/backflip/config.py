@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from optimal_control.validation import require_finite_fields
 
@@ -53,6 +53,35 @@ class BackflipConfig:
     # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2 [1/s]
     wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)
     midpoint_constraints: bool = True  # dynamics and torque limits also at interval midpoints
+    limits_between_knots: bool = field(
+        default=True,
+        metadata={
+            "help": "joint position and speed limits hold on the whole interpolant between knots "
+            "(its Bernstein control points are bounded), not only at the knots"
+        },
+    )
+    quarter_point_torques: bool = field(
+        default=False,
+        metadata={
+            "help": "joint torque limits also at the interval quarter points (with the midpoint "
+            "constraints): the torque peaks that fall between knot and midpoint are bounded"
+        },
+    )
+    torque_refinements: int = field(
+        default=5,
+        metadata={
+            "help": "after the solve, at most this many warm re-solves that tighten the knot and "
+            "midpoint torque bounds of the intervals whose 1 kHz interpolant exceeds the limit "
+            "(same solver, no rebuild) [-]"
+        },
+    )
+    torque_limit_margin: float = field(
+        default=0.005,
+        metadata={
+            "help": "knot and midpoint torques stay within (1 - margin) x alpha x effort limit: "
+            "headroom for the torque between those samples (see --torque-refinements) [-]"
+        },
+    )
     torque_weight: float = 1e-3  # cost on (tau / tau_max)^2 integrated over time [1/s]
     acceleration_weight: float = 1e-4  # cost on joint accelerations^2 integrated [s^3/rad^2]
     min_pelvis_height_m: float = 0.4  # pelvis origin stays this high throughout [m]
@@ -111,6 +140,10 @@ class BackflipConfig:
             raise ValueError(f"hessian must be 'exact' or 'limited-memory', got '{self.hessian}'.")
         if self.symbolic not in ("MX", "SX"):
             raise ValueError(f"symbolic must be 'MX' or 'SX', got '{self.symbolic}'.")
+        if not 0.0 <= self.torque_limit_margin < 1.0:
+            raise ValueError(
+                f"torque_limit_margin must be in [0, 1), got {self.torque_limit_margin}."
+            )
         if not self.wrench_weights:
             raise ValueError("wrench_weights needs at least one continuation stage.")
         return self

@@ -257,7 +257,8 @@ def solve_backflip(
     playback_report = {}
     playbacks = {}
     if out_cfg.playback:
-        flip_sim = sample_solution(sol, grid, model, 1.0 / 0.005)
+        # MuJoCo steps at exactly 5 ms: keep that step (the last sample is <= 5 ms before the end)
+        flip_sim = sample_solution(sol, grid, model, 1.0 / 0.005, through_end=False)
         playbacks = _playbacks(flip_sim, playback_cfg, cfg.turn_rad)
         playback_report = {k: v[0].to_dict() for k, v in playbacks.items()}
         playback_report["flight_only"] = _flight_checks(flip_sim, playback_cfg)
@@ -337,7 +338,12 @@ def solve_backflip(
     art, folder = solve_reference_oracle(
         "backflip", ref, oracle_cfg, summary, arrays, NOVICE_MODEL, finish, write_extra
     )
-    report = {"solver": solver, "audit": audit.to_dict(), "playback": playback_report}
+    report = {
+        "solver": solver,
+        "audit": audit.to_dict(),
+        "playback": playback_report,
+        "fine_grid_limits": limits,
+    }
     return art, folder, report
 
 
@@ -355,6 +361,15 @@ def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> 
         f"{a['energy_total_j']['wrench_work']:.2f} + contacts {a['energy_total_j']['contact_work']:.2e} "
         f"(error {a['energy_total_j']['balance_error']:.1f} J)",
     ]
+    lim = report.get("fine_grid_limits")
+    if lim:
+        lines.append(
+            f"  limits on a {lim['rate_hz']:.0f} Hz grid: effort {lim['effort']['max_ratio']:.4f} "
+            f"({lim['effort']['joint']}), speed {lim['speed']['max_ratio']:.4f} "
+            f"({lim['speed']['joint']}), position beyond range "
+            f"{lim['position_beyond_range']['max_ratio']:.2g}; within limits: "
+            f"{lim['within_limits']}"
+        )
     for key, pb in report["playback"].items():
         if key in ("config", "flight_only", "air_inverse_dynamics_gap_nm"):
             continue

@@ -4,7 +4,7 @@ A backflip is a left/right-symmetric motion in the sagittal plane. The TO theref
     r = [x_w, z_w, pitch, hip_pitch, knee, ankle_pitch, shoulder_pitch, elbow]  (8,)
 (base position in the x-z plane [m], base pitch about the world y axis [rad], and five pitch joints,
 each driving the left and the right joint together). Every other joint is held at the stand pose,
-the waist pitch included: when the TO was free to swing the torso it drove the waist (50 Nm) to its
+the waist pitch included: when the TO was free to swing the torso it drove the waist (50 Nm then) to its
 limit for long stretches and the MuJoCo playback collapsed at the waist.
 The dynamics are not reduced: r maps to the full Pinocchio q (36,), v (35,), a (35,) and the full
 3-D RNEA of :mod:`optimal_control.casadi_dynamics` gives all 35 generalised forces, so held joints
@@ -74,7 +74,7 @@ class SagittalModel:
     lower_r: np.ndarray  # (NR,) position lower bounds (base entries -inf) [m, rad]
     upper_r: np.ndarray  # (NR,) position upper bounds [m, rad]
     velocity_limit: np.ndarray  # (NR,) speed bounds (base entries inf) [m/s, rad/s]
-    effort_limit_nm: np.ndarray  # (29,) effort limits of all joints [Nm]
+    effort_limit_nm: np.ndarray  # (29,) effort limits of all joints, from the URDF [Nm]
 
     def r_stand(self) -> np.ndarray:
         """Sagittal configuration of the stand pose (soles on z = 0 at x = 0 under the ankle)."""
@@ -201,5 +201,7 @@ def build_sagittal_model() -> SagittalModel:
         lower_r=lower,
         upper_r=upper,
         velocity_limit=vel,
-        effort_limit_nm=g1.EFFORT_LIMIT_NM.copy(),
+        # the URDF's effort limits (35 Nm at the ankles and waist roll/pitch, where robots.g1's
+        # actuator table has the two-motor linkage's 50 Nm): the TO plans within the URDF
+        effort_limit_nm=robot.model.effortLimit[robot.joint_v_index].copy(),
     )

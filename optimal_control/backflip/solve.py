@@ -32,6 +32,7 @@ class StageStats:
     return_status: str  # IPOPT return status
     success: bool  # IPOPT reported success
     objective: float  # final objective value
+    refinement: int = 0  # 0: continuation stage; i > 0: i-th torque-bound refinement re-solve
 
 
 @dataclass
@@ -47,8 +48,9 @@ class SolveResult:
 
     @property
     def success(self) -> bool:
-        """All stages converged and the constraints hold."""
-        return all(s.success for s in self.stages) and self.max_violation < 1e-5
+        """All continuation stages converged and the constraints hold (a rejected torque
+        refinement keeps the solution before it)."""
+        return all(s.success for s in self.stages if not s.refinement) and self.max_violation < 1e-5
 
     @property
     def max_violation(self) -> float:
@@ -99,6 +101,69 @@ def constraint_violations(tr: Transcription, x: np.ndarray, g: np.ndarray) -> di
     bound = np.maximum(tr.lbx - x, 0.0) + np.maximum(x - tr.ubx, 0.0)
     out["variable bounds (joint limits, speeds, wrench, durations)"] = float(bound.max())
     return out
+
+
+TORQUE_REFINE_TARGET = 5e-4
+"""Refinement goal: the 1 kHz torque stays within (1 + this) x the TO's torque bound."""
+
+
+def torque_overshoot(tr: Transcription, sol: Solution, model: SagittalModel) -> np.ndarray:
+    """(N, 29) largest excess of the 1 kHz interpolant's |tau| over the TO's torque bound
+    (alpha x tau_max, held joints their fraction; margin not included) in each interval, as a
+    fraction of tau_max (<= 0 where within)."""
+    from optimal_control.backflip.trajectory import sample_solution
+
+    grid = tr.grid
+    flip = sample_solution(sol, grid, model, 1000.0)
+    t_knots = sol.knot_times_s(grid)
+    k = np.clip(np.searchsorted(t_knots, flip.time_s, side="right") - 1, 0, grid.num_intervals - 1)
+    ratio = np.abs(flip.tau_nm) / model.effort_limit_nm - tr.torque_limit_fraction
+    out = np.full((grid.num_intervals, ratio.shape[1]), -np.inf)
+    np.maximum.at(out, k, ratio)
+    return out
+
+
+def refine_torque_bounds(
+    tr: Transcription, lbg: np.ndarray, ubg: np.ndarray, overshoot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Tighten the torque rows of the samples (knots at both ends, midpoint) of every interval
+    whose interpolant overshoots the bound, by twice the overshoot (+ the refinement target) on
+    the overshooting joints. Returns the new (lbg, ubg) and the number of (interval, joint) pairs."""
+    rows_g = _torque_rows(tr)
+    nj = overshoot.shape[1]
+    lo = lbg[rows_g].reshape(-1, nj).copy()
+    hi = ubg[rows_g].reshape(-1, nj).copy()
+    u = tr.torque_sample_u
+    bad = overshoot > TORQUE_REFINE_TARGET * np.maximum(tr.torque_limit_fraction, 1e-9)
+    for k, j in zip(*np.nonzero(bad), strict=True):
+        rows = (u >= k) & (u <= k + 1)
+        # twice the overshoot: the peak between the samples moves with their bound, but less
+        cut = 2.0 * overshoot[k, j] + TORQUE_REFINE_TARGET * tr.torque_limit_fraction[j]
+        hi[rows, j] = np.maximum(hi[rows, j] - cut, 0.0)
+        lo[rows, j] = np.minimum(lo[rows, j] + cut, 0.0)
+    lbg, ubg = lbg.copy(), ubg.copy()
+    lbg[rows_g], ubg[rows_g] = lo.ravel(), hi.ravel()
+    return lbg, ubg, int(bad.sum())
+
+
+def _torque_rows(tr: Transcription) -> slice:
+    _, start, stop = next(g for g in tr.groups if g[0].startswith("torque limits"))
+    return slice(start, stop)
+
+
+def torque_cut(tr: Transcription, ubg: np.ndarray) -> np.ndarray:
+    """(blocks, 29) tightening of the torque rows in ``ubg`` against the transcription's own."""
+    rows = _torque_rows(tr)
+    return (tr.ubg[rows] - ubg[rows]).reshape(len(tr.torque_sample_u), -1)
+
+
+def apply_torque_cut(tr: Transcription, cut: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lbg, ubg) of ``tr`` with the torque rows tightened by ``cut`` (see :func:`torque_cut`)."""
+    rows = _torque_rows(tr)
+    lbg, ubg = tr.lbg.copy(), tr.ubg.copy()
+    ubg[rows] = np.maximum(ubg[rows] - cut.ravel(), 0.0)
+    lbg[rows] = np.minimum(lbg[rows] + cut.ravel(), 0.0)
+    return lbg, ubg
 
 
 def _problem_source_digest() -> str:
@@ -156,7 +221,12 @@ def solve_backflip_to(
     ``cfg.wrench_weights`` (cheap wrench first, so the first stage only has to find a kinematically
     sound flip; each later stage starts from the previous one and pushes the help to zero where the
     robot can do without). Warm start (``warm_start`` or ``cfg.warm_start`` path): only the last
-    weight is solved.
+    weight is solved, with the warm start's ``torque_cut`` re-applied.
+
+    Then up to ``cfg.torque_refinements`` warm re-solves of the last stage with the same solver:
+    where the 1 kHz interpolant's torque exceeds the bound between the knot and midpoint samples
+    (:func:`torque_overshoot`), those samples' bounds are tightened (:func:`refine_torque_bounds`);
+    the total tightening is returned as ``solution.torque_cut``.
 
     If the last stage ends infeasible and ``raise_on_failure``, the last iterate is saved to
     ``failure_path`` (if given) and :class:`InfeasibleBackflipError` names the violated groups.
@@ -183,29 +253,54 @@ def solve_backflip_to(
     stages: list[StageStats] = []
     lam_x = lam_g = None
     g = np.zeros(tr.lbg.shape)
-    for weight in weights:
-        args = {"x0": x, "lbx": tr.lbx, "ubx": tr.ubx, "lbg": tr.lbg, "ubg": tr.ubg, "p": weight}
+    lbg, ubg = tr.lbg, tr.ubg
+    cut0 = None if warm_start is None else warm_start.torque_cut
+    if cut0 is not None and cut0.shape == (len(tr.torque_sample_u), len(model.effort_limit_nm)):
+        lbg, ubg = apply_torque_cut(tr, cut0)  # the warm start's refined problem
+    # continuation stages, then re-solves of the last one with the torque bounds tightened where
+    # the interpolant overshoots between the knot and midpoint samples (bounds are solver inputs:
+    # no rebuild)
+    plan = [(w, 0) for w in weights] + [
+        (weights[-1], i + 1) for i in range(max(cfg.torque_refinements, 0))
+    ]
+    for weight, refinement in plan:
+        if refinement:
+            if not all(s.success for s in stages):
+                break  # refine a solution, not a failed iterate
+            overshoot = torque_overshoot(tr, tr.solution(x), model)
+            kept = (lbg, ubg)
+            lbg, ubg, count = refine_torque_bounds(tr, lbg, ubg, overshoot)
+            if count == 0:
+                break
+        args = {"x0": x, "lbx": tr.lbx, "ubx": tr.ubx, "lbg": lbg, "ubg": ubg, "p": weight}
         if lam_g is not None:
             args.update(lam_x0=lam_x, lam_g0=lam_g)
         t1 = time.perf_counter()
         out = solver(**args)
         wall = time.perf_counter() - t1
         st = solver.stats()
+        stage = StageStats(
+            float(weight),
+            int(st.get("iter_count", -1)),
+            wall,
+            str(st.get("return_status", "")),
+            bool(st.get("success", False)),
+            float(out["f"]),
+            refinement,
+        )
+        stages.append(stage)
+        if refinement and not stage.success:
+            stage.return_status += " (refinement rejected: the solution before it is kept)"
+            lbg, ubg = kept
+            break
         x = np.asarray(out["x"]).ravel()
         g = np.asarray(out["g"]).ravel()
         lam_x, lam_g = out["lam_x"], out["lam_g"]
-        stages.append(
-            StageStats(
-                float(weight),
-                int(st.get("iter_count", -1)),
-                wall,
-                str(st.get("return_status", "")),
-                bool(st.get("success", False)),
-                float(out["f"]),
-            )
-        )
+    solution = tr.solution(x)
+    cut = torque_cut(tr, ubg)
+    solution.torque_cut = cut if np.any(cut != 0.0) else None
     result = SolveResult(
-        tr.solution(x),
+        solution,
         tr,
         stages,
         build_time,

@@ -64,16 +64,38 @@ def wrench_body_to_world_com(q: np.ndarray, wrench_b: np.ndarray, lever_b: np.nd
     return np.concatenate([f_w, m_origin_w - np.cross(lever_w, f_w)], axis=1)
 
 
-def sample_solution(sol: Solution, grid: Grid, model: SagittalModel, rate_hz: float) -> SampledFlip:
-    """Sample ``sol`` at ``rate_hz`` with the collocation's own interpolant (acceleration linear,
-    velocity quadratic, position cubic in each interval); forces linear (zero inside the Air
-    phase), the wrench quadratic through its knot and midpoint values, torques from the inverse
-    dynamics of the sampled state."""
+LIMIT_RATIO_TOL = 1e-3
+"""Effort and speed ratios up to 1 + this count as within the limits (the audit's torque_tol)."""
+
+
+def sample_times_s(duration_s: float, rate_hz: float, through_end: bool = True) -> np.ndarray:
+    """Uniform sample times over [0, duration_s].
+
+    ``through_end``: the last sample is the end (the final knot); the step is the largest
+    ``duration_s / M`` not above ``1 / rate_hz`` (the rate is at least ``rate_hz``). Otherwise the
+    step is exactly ``1 / rate_hz`` (a simulator's fixed step) and the last sample is the last
+    multiple of it not after the end.
+    """
     if rate_hz <= 0:
         raise ValueError(f"rate_hz must be > 0, got {rate_hz}.")
+    if through_end:
+        steps = max(1, int(np.ceil(duration_s * rate_hz - 1e-6)))
+        return np.linspace(0.0, duration_s, steps + 1)
+    return np.arange(0.0, duration_s + 1e-9, 1.0 / rate_hz)
+
+
+def sample_solution(
+    sol: Solution, grid: Grid, model: SagittalModel, rate_hz: float, through_end: bool = True
+) -> SampledFlip:
+    """Sample ``sol`` at (at least) ``rate_hz`` with the collocation's own interpolant
+    (acceleration linear, velocity quadratic, position cubic in each interval); forces linear
+    (zero inside the Air phase), the wrench quadratic through its knot and midpoint values,
+    torques from the inverse dynamics of the sampled state. Sample times as in
+    :func:`sample_times_s`: by default the last sample is the final knot (the landed rest pose);
+    ``through_end=False`` keeps the step at exactly ``1 / rate_hz`` (MuJoCo playback)."""
     t_knots = sol.knot_times_s(grid)
-    dt = 1.0 / rate_hz
-    times = np.arange(0.0, t_knots[-1] + 1e-9, dt)
+    times = sample_times_s(float(t_knots[-1]), rate_hz, through_end)
+    dt = float(times[1] - times[0]) if len(times) > 1 else 1.0 / rate_hz
     k = np.clip(np.searchsorted(t_knots, times, side="right") - 1, 0, grid.num_intervals - 1)
     h = (t_knots[k + 1] - t_knots[k])[:, None]
     s = (times - t_knots[k])[:, None]
@@ -117,6 +139,9 @@ def fine_grid_limit_report(
 ) -> dict:
     """Largest effort, speed and position ratio to the URDF limits on a fine grid (JSON-ready).
 
+    ``within_limits``: effort and speed ratios <= 1 + :data:`LIMIT_RATIO_TOL`, no position beyond
+    the range (share <= 1e-6).
+
     The solution is sampled at ``rate_hz`` with the collocation's own interpolant
     (:func:`sample_solution`, torques from the inverse dynamics of each sample), so excursions
     *between* knots count. Ratios: |tau| / effort limit, |qdot| / URDF speed limit, and for
@@ -149,6 +174,8 @@ def fine_grid_limit_report(
         "speed": worst(speed),
         "position_beyond_range": worst(position),
         "pelvis_wrench_max_norm_force_n": float(np.linalg.norm(flip.wrench_w[:, :3], axis=1).max()),
-        "within_limits": bool(effort.max() <= 1.0 + 1e-6 and speed.max() <= 1.0 + 1e-6)
+        "ratio_tolerance": LIMIT_RATIO_TOL,
+        "within_limits": bool(effort.max() <= 1.0 + LIMIT_RATIO_TOL)
+        and bool(speed.max() <= 1.0 + LIMIT_RATIO_TOL)
         and bool(position.max() <= 1e-6),
     }

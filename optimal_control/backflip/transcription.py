@@ -23,7 +23,7 @@ A first-order (semi-implicit Euler) scheme was tried first: its per-interval ene
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -95,6 +95,10 @@ class Solution:
     force_n: np.ndarray
     durations_s: np.ndarray
     wrench_mid_b: np.ndarray
+    # (blocks, 29) how far the torque refinement tightened each torque-limit row below
+    # alpha x tau_max [fraction of tau_max]; None = not refined. Part of the solved problem: a
+    # warm start re-applies it, so the warm re-solve solves the same NLP.
+    torque_cut: np.ndarray | None = None
 
     def dt_per_interval(self, grid: Grid) -> np.ndarray:
         """(N,) time step of each interval [s]."""
@@ -107,7 +111,8 @@ class Solution:
 
     def to_npz_dict(self) -> dict[str, np.ndarray]:
         """Arrays for ``np.savez``."""
-        return {
+        cut = {} if self.torque_cut is None else {"torque_cut": self.torque_cut}
+        return cut | {
             "r": self.r,
             "rd": self.rd,
             "rdd": self.rdd,
@@ -120,7 +125,13 @@ class Solution:
     @classmethod
     def from_npz(cls, data) -> Solution:
         """Inverse of :meth:`to_npz_dict` (an ``np.load`` result or a dict)."""
-        return cls(**{k: np.asarray(data[k], dtype=float) for k in cls.__dataclass_fields__})
+        optional = {"torque_cut"}
+        fields = {
+            k: np.asarray(data[k], dtype=float)
+            for k in cls.__dataclass_fields__
+            if k not in optional or k in data
+        }
+        return cls(**fields)
 
 
 @dataclass
@@ -138,6 +149,11 @@ class Transcription:
     unpack: ca.Function  # x -> (r, rd, rdd, w_s, f_s, durations)
     force_knots: np.ndarray
     num_params: int
+    # knot-axis position (k + fraction of interval k) of each block of 29 torque-limit rows
+    torque_sample_u: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    torque_limit_fraction: np.ndarray = field(
+        default_factory=lambda: np.zeros(0)
+    )  # (29,) of tau_max
 
     def pack(self, sol: Solution) -> np.ndarray:
         """Decision vector x of a :class:`Solution`."""
@@ -238,17 +254,19 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
                 for k in range(n)
             ]
         )
-        dyn_rows, torque_rows, integ_rows, cost = _mapped_dynamics(
+        dyn_rows, torque_rows, integ_rows, cost, torque_u = _mapped_dynamics(
             model, cfg, grid, r, rd, rdd, w_s, w_mid, f_all, ca.horzcat(*dts), weight_w
         )
     else:
         cost = 0.0
         dyn_rows, torque_rows, integ_rows = [], [], []
+        torque_u: list[float] = []
         for k in range(n):
             f_k = f_s[:, force_index[k]] * FORCE_SCALE_N if k in force_index else SYM.zeros(NF)
             tau = model.inverse_dynamics(r[:, k], rd[:, k], rdd[:, k], f_k)
             dyn_rows.append((tau[0:6] - w_s[:, k] * WRENCH_SCALE) / WRENCH_SCALE)
             torque_rows.append(tau[6:] / effort)
+            torque_u.append(float(k))
             dt_cost = dts[min(k, n - 2)]
             cost += weight_w * dt_cost * ca.sumsqr(w_s[:, k])
             cost += cfg.torque_weight * dt_cost * ca.sumsqr(tau[6:] / effort)
@@ -268,17 +286,27 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
                     rdd_m = rdd[:, k] + jump / 2
                     rd_m = rd[:, k] + h / 2 * rdd[:, k] + h / 8 * jump
                     r_m = r[:, k] + h / 2 * rd[:, k] + h**2 / 8 * rdd[:, k] + h**2 / 48 * jump
+                    f_next = (
+                        f_s[:, force_index[k + 1]] * FORCE_SCALE_N
+                        if k + 1 in force_index
+                        else SYM.zeros(NF)
+                    )
                     if grid.phase_of_interval[k] == AIR_PHASE:
                         f_m = SYM.zeros(NF)
                     else:
-                        f_next = (
-                            f_s[:, force_index[k + 1]] * FORCE_SCALE_N
-                            if k + 1 in force_index
-                            else 0.0
-                        )
                         f_m = (f_k + f_next) / 2
                     tau_m = model.inverse_dynamics(r_m, rd_m, rdd_m, f_m)
                     torque_rows.append(tau_m[6:] / effort)
+                    torque_u.append(k + 0.5)
+                    if cfg.quarter_point_torques:
+                        air_k = grid.phase_of_interval[k] == AIR_PHASE
+                        for frac in (0.25, 0.75):
+                            f_q = SYM.zeros(NF) if air_k else (1 - frac) * f_k + frac * f_next
+                            tau_q = model.inverse_dynamics(
+                                *_interpolant_at(r[:, k], rd[:, k], rdd[:, k], jump, h, frac), f_q
+                            )
+                            torque_rows.append(tau_q[6:] / effort)
+                            torque_u.append(k + frac)
                     # the dynamics hold at the midpoint too, with its own pelvis wrench
                     dyn_rows.append(tau_m[0:6] / WRENCH_SCALE - w_mid[:, k])
                     cost += weight_w * dts[k] * ca.sumsqr(w_mid[:, k])
@@ -293,10 +321,29 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     for cols in model.joint_columns:
         moved[list(cols)] = True
     scale = np.where(moved, alpha, alpha * cfg.held_joint_torque_fraction)
+    limit_fraction = scale.copy()
+    # the torque between the knot and midpoint samples is not bounded by them: keep a margin
+    scale = scale * (1.0 - cfg.torque_limit_margin)
     num_torque_rows = sum(row.shape[0] for row in torque_rows) // len(effort)
     scale_rows = np.tile(scale, num_torque_rows)
     add("torque limits alpha*tau_max", ca.vertcat(*torque_rows), -scale_rows, scale_rows)
     add("integration (trapezoidal, linear acceleration)", ca.vertcat(*integ_rows), 0.0, 0.0)
+    if cfg.limits_between_knots:
+        pos_rows, speed_rows = _between_knot_limit_rows(r, rd, rdd, dts)
+        lower, upper = model.lower_r[3:], model.upper_r[3:]
+        add(
+            "joint position limits between knots (cubic's Bernstein control points)",
+            pos_rows,
+            np.tile(lower, 2 * (n - 1)),
+            np.tile(upper, 2 * (n - 1)),
+        )
+        speed = np.tile(model.velocity_limit[3:], n - 1)
+        add(
+            "joint speed limits between knots (quadratic's Bernstein control point)",
+            speed_rows,
+            -speed,
+            speed,
+        )
 
     # contact: friction pyramid and unilateral normal force at each heel/toe point
     mu = cfg.friction_coefficient
@@ -424,7 +471,38 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
         unpack=unpack,
         force_knots=fk,
         num_params=1,
+        torque_sample_u=np.asarray(torque_u, dtype=float),
+        torque_limit_fraction=limit_fraction,
     )
+
+
+def _interpolant_at(r0, rd0, rdd0, jump, h, frac):
+    """(r, rd, rdd) of the collocation's interpolant at ``frac`` of an interval of length h that
+    starts at (r0, rd0, rdd0) with acceleration change ``jump`` over the interval."""
+    t = frac * h
+    rdd = rdd0 + frac * jump
+    rd = rd0 + t * rdd0 + t * frac * jump / 2
+    r = r0 + t * rd0 + t**2 * rdd0 / 2 + t**2 * frac * jump / 6
+    return r, rd, rdd
+
+
+def _between_knot_limit_rows(r, rd, rdd, dts) -> tuple:
+    """Inner Bernstein control points of the joints' interpolant in every interval.
+
+    On an interval of length h the position is the cubic with Bernstein control points
+    (r_k, r_k + h rd_k / 3, r_{k+1} - h rd_{k+1} / 3, r_{k+1}) and the speed the quadratic with
+    (rd_k, rd_k + h rdd_k / 2, rd_{k+1}). A Bernstein polynomial stays inside the convex hull of
+    its control points, so bounding the inner ones (the knots are bounded as variables) keeps the
+    whole interpolant within the limits: a sufficient, smooth condition, linear in the states for a
+    given h. Returns (position rows (2 N x 5,), speed rows (N x 5,)), knot-major.
+    """
+    joints = slice(3, NR)
+    pos, vel = [], []
+    for k, h in enumerate(dts):
+        pos.append(r[joints, k] + h / 3 * rd[joints, k])
+        pos.append(r[joints, k + 1] - h / 3 * rd[joints, k + 1])
+        vel.append(rd[joints, k] + h / 2 * rdd[joints, k])
+    return ca.vertcat(*pos), ca.vertcat(*vel)
 
 
 def _mapped_dynamics(model, cfg, grid, r, rd, rdd, w_s, w_mid, f_all, h_row, weight_w):
@@ -458,27 +536,42 @@ def _mapped_dynamics(model, cfg, grid, r, rd, rdd, w_s, w_mid, f_all, h_row, wei
     rd_m = rds + hs / 2 * rdds + hs / 8 * jump
     r_m = rs + hs / 2 * rds + hs**2 / 8 * rdds + hs**2 / 48 * jump
     tau_m = model.inverse_dynamics(r_m, rd_m, rdd_m, fs)
+    f0, f1 = ca.SX.sym("f0", NF), ca.SX.sym("f1", NF)
+    quarter = [
+        model.inverse_dynamics(
+            *_interpolant_at(rs, rds, rdds, jump, hs, frac), (1 - frac) * f0 + frac * f1
+        )[6:]
+        / effort
+        for frac in (0.25, 0.75)
+    ]
     interval_fn = ca.Function(
         "interval_rows",
-        [rs, rds, rdds, r1, rd1, rdd1, fs, hs, wms],
-        [integ, tau_m[0:6] / WRENCH_SCALE - wms, tau_m[6:] / effort],
+        [rs, rds, rdds, r1, rd1, rdd1, fs, hs, wms, f0, f1],
+        [integ, tau_m[0:6] / WRENCH_SCALE - wms, tau_m[6:] / effort, ca.vertcat(*quarter)],
     )
     dyn_k, torque_k, tcost_k = knot_fn.map(n)(r, rd, rdd, f_all, w_s)
     air = np.array([grid.phase_of_interval[k] == AIR_PHASE for k in range(n - 1)], dtype=float)
     f_mid = (f_all[:, :-1] + f_all[:, 1:]) / 2 * ca.repmat(ca.DM(1.0 - air).T, NF, 1)
-    integ_i, dyn_m, torque_m = interval_fn.map(n - 1)(
-        r[:, :-1], rd[:, :-1], rdd[:, :-1], r[:, 1:], rd[:, 1:], rdd[:, 1:], f_mid, h_row, w_mid
-    )
+    stance = ca.repmat(ca.DM(1.0 - air).T, NF, 1)
+    integ_i, dyn_m, torque_m, torque_q = interval_fn.map(n - 1)(
+        r[:, :-1], rd[:, :-1], rdd[:, :-1], r[:, 1:], rd[:, 1:], rdd[:, 1:], f_mid, h_row, w_mid,
+        f_all[:, :-1] * stance, f_all[:, 1:] * stance,
+    )  # fmt: skip
     h_knot = ca.horzcat(h_row, h_row[:, -1])
     cost = weight_w * ca.dot(h_knot, ca.sum1(w_s**2))
     cost += cfg.torque_weight * ca.dot(h_knot, tcost_k)
     cost += cfg.acceleration_weight * ca.dot(h_knot, ca.sum1(rdd[3:, :] ** 2))
     dyn_rows, torque_rows = [ca.vec(dyn_k)], [ca.vec(torque_k)]
+    torque_u = [float(k) for k in range(n)]
     if cfg.midpoint_constraints:
         dyn_rows.append(ca.vec(dyn_m))
         torque_rows.append(ca.vec(torque_m))
+        torque_u += [k + 0.5 for k in range(n - 1)]
+        if cfg.quarter_point_torques:
+            torque_rows.append(ca.vec(torque_q))
+            torque_u += [k + frac for k in range(n - 1) for frac in (0.25, 0.75)]
         cost += weight_w * ca.dot(h_row, ca.sum1(w_mid**2))
-    return dyn_rows, torque_rows, [ca.vec(integ_i)], cost
+    return dyn_rows, torque_rows, [ca.vec(integ_i)], cost, torque_u
 
 
 # ---------------------------------------------------------------- initial guess
