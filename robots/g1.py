@@ -7,6 +7,11 @@ velocity limits come from the URDF itself (read by the model builders), so nothi
 Gains and effort limits follow the values commonly used for the G1 in mjlab / Unitree deployment
 (dt 0.005 s, decimation 4). The ankle and waist roll/pitch joints are driven through a two-motor
 linkage; their effort limit (50 Nm) is the pair's, higher than the single-motor 35 Nm the URDF lists.
+Source of the 50 Nm: Unitree's own MuJoCo model of the G1 (unitree_mujoco / MuJoCo Menagerie
+``unitree_g1/g1.xml``: ``ctrlrange="-50 50"`` on the ankle and waist roll/pitch motors) and mjlab's
+G1 constants (two 5020 motors, 2 x 25 Nm). The simulators here use it; the backflip trajectory
+optimisation uses the URDF's 35 Nm instead (conservative: a reference doable at 35 Nm is doable
+at 50; ``optimal_control/backflip/sagittal.py``).
 """
 
 from __future__ import annotations
