@@ -368,3 +368,132 @@ def test_flight_alone_follows_the_reference_and_diagnostics_are_reported(hop, mo
     assert len(gap) > 10 and np.median(gap) < 1e-6
     with pytest.raises(ValueError, match="contact_timeconst_s"):
         play_back(flip, True, PlaybackConfig(contact_timeconst_s=0.001), turn_rad=0.0)
+
+
+def _solution_arrays_equal(a, b) -> None:
+    for name in ("r", "rd", "rdd", "wrench_b", "force_n", "durations_s", "wrench_mid_b"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_cached_solution_of_the_same_problem_is_reused_without_a_solver(hop, model, tmp_path):
+    """A cache file of this very problem is re-checked against the problem's constraints and
+    reused as it is (no solver build, no IPOPT); a solution that does not meet them is not."""
+    from optimal_control.backflip.solve import (
+        cache_path,
+        load_cached_solution,
+        reuse_solution,
+        save_solution,
+    )
+
+    cfg = dataclasses.replace(TINY_HOP, cache_dir=str(tmp_path))
+    sol = load_cached_solution(save_solution(hop.solution, cache_path(cfg), cfg), cfg)
+    reused = reuse_solution(cfg, sol, model)
+    assert reused is not None and reused.reused_cached_solution and reused.warm_started
+    assert reused.success and reused.total_iterations == 0
+    assert reused.stats_dict()["reused_cached_solution"]
+    _solution_arrays_equal(reused.solution, hop.solution)
+    assert reused.max_violation == pytest.approx(hop.max_violation, abs=1e-9)
+    moved = dataclasses.replace(sol, r=sol.r.copy())
+    moved.r[3, 0] += 1e-3  # breaks the collocation rows of two intervals
+    assert reuse_solution(cfg, moved, model) is None
+
+
+def test_stale_or_corrupt_cache_files_are_refused(hop, tmp_path):
+    """A cache file is reused only for the problem (full key) and tolerance it was solved for:
+    another problem's file under this name, a file without a key (a solution.npz copied in) or
+    one solved to a looser tol is stale; junk is corrupt (a plain ValueError)."""
+    from optimal_control.backflip.solve import (
+        StaleCacheError,
+        cache_path,
+        load_cached_solution,
+        problem_key,
+        save_solution,
+    )
+
+    cfg = dataclasses.replace(TINY_HOP, cache_dir=str(tmp_path))
+    path = cache_path(cfg)
+    assert path.name == f"backflip_{problem_key(cfg)[:12]}.npz"
+    other = dataclasses.replace(cfg, torque_scale=0.9)
+    assert problem_key(other) != problem_key(cfg)
+    assert problem_key(dataclasses.replace(cfg, tol=1e-8, print_level=5)) == problem_key(cfg)
+    for writer, needle in (
+        (other, "another problem"),
+        (None, "another problem"),
+        (dataclasses.replace(cfg, tol=1e-4), "looser"),
+    ):
+        save_solution(hop.solution, path, writer)
+        with pytest.raises(StaleCacheError, match=needle):
+            load_cached_solution(path, cfg)
+    path.write_bytes(b"\x00" * 64)
+    with pytest.raises(ValueError, match="not an .npz") as err:
+        load_cached_solution(path, cfg)
+    assert not isinstance(err.value, StaleCacheError)
+
+
+_REUSE_SCRIPT = """
+import dataclasses, json, sys
+from optimal_control.backflip.config import tiny_hop_config
+from optimal_control.backflip.pipeline import BackflipOracleConfig, OutputConfig, solve_backflip
+cfg = dataclasses.replace(tiny_hop_config(), max_iter=200, cache_dir=sys.argv[1])
+oracle = BackflipOracleConfig(
+    alphas=(1.0,), novice_alpha=1.0, video=False, progress=False, out=sys.argv[2]
+)
+art, folder, report = solve_backflip(cfg, oracle, out_cfg=OutputConfig(playback=False))
+print(json.dumps({"solver": report["solver"], "eta0": art.eta0.tolist()}))
+"""
+
+
+def test_a_fresh_process_reuses_the_cache_and_ships_the_same_solution(hop, tmp_path):
+    """``solve-backflip`` in a new process with the cache of its problem present builds no
+    solver and writes exactly the cached solution into the artifact."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from optimal_control.backflip.solve import cache_path, load_solution, save_solution
+
+    cfg = dataclasses.replace(TINY_HOP, cache_dir=str(tmp_path / "cache"))
+    save_solution(hop.solution, cache_path(cfg), cfg)
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run(
+        [sys.executable, "-c", _REUSE_SCRIPT, cfg.cache_dir, str(tmp_path / "art")],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    solver = json.loads(out.stdout.strip().splitlines()[-1])["solver"]
+    assert solver["reused_cached_solution"] and solver["total_iterations"] == 0, solver
+    assert solver["warm_start_from"] == str(cache_path(cfg))
+    shipped = load_solution(tmp_path / "art" / "solution.npz", "artifact solution")
+    _solution_arrays_equal(shipped, hop.solution)
+
+
+@pytest.mark.slow
+def test_reused_cache_gives_the_eta0_of_a_warm_re_solve(tmp_path):
+    """The reused cached solution and a warm re-solve from it (a freshly built solver) agree:
+    same eta0 to the QP's tolerance, the same solution to IPOPT's; a stale cache file is a miss
+    with a warning."""
+    from optimal_control.backflip.pipeline import BackflipOracleConfig, OutputConfig, solve_backflip
+    from optimal_control.backflip.solve import cache_path, save_solution
+
+    cfg = dataclasses.replace(TINY_HOP, cache_dir=str(tmp_path / "cache"))
+    other = dataclasses.replace(cfg, torque_scale=0.9)
+    save_solution(solve_backflip_to(cfg, build_sagittal_model()).solution, cache_path(cfg), other)
+
+    def run(name, **out):
+        oracle = BackflipOracleConfig(
+            alphas=(1.0,), novice_alpha=1.0, video=False, progress=False, out=str(tmp_path / name)
+        )
+        return solve_backflip(cfg, oracle, out_cfg=OutputConfig(playback=False, **out))
+
+    with pytest.warns(UserWarning, match="stale cache file"):
+        cold, _, rep = run("cold")
+    assert not rep["solver"]["warm_started"]
+    reused, _, rep = run("reused")
+    assert rep["solver"]["reused_cached_solution"]
+    resolved, _, rep = run("resolved", reuse_cached_solution=False)
+    assert rep["solver"]["warm_started"] and not rep["solver"]["reused_cached_solution"]
+    np.testing.assert_array_equal(reused.eta0, cold.eta0)
+    np.testing.assert_allclose(resolved.eta0, reused.eta0, rtol=0.02, atol=0.5)

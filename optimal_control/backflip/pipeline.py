@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -36,11 +36,13 @@ from optimal_control.backflip.playback import (
     play_flight,
     reference_centroidal,
 )
-from optimal_control.backflip.sagittal import MOVED_JOINTS, build_sagittal_model
+from optimal_control.backflip.sagittal import MOVED_JOINTS, SagittalModel, build_sagittal_model
 from optimal_control.backflip.solve import (
     SolveResult,
+    StaleCacheError,
     cache_path,
-    load_solution,
+    load_cached_solution,
+    reuse_solution,
     save_solution,
     solve_backflip_to,
 )
@@ -68,6 +70,14 @@ class OutputConfig:
 
     rate_hz: float = 50.0  # artifact sample rate [Hz]
     use_cache: bool = True  # warm-start from the cached solution of the same problem if any
+    reuse_cached_solution: bool = field(
+        default=True,
+        metadata={
+            "help": "with --use-cache, reuse the cached solution of the same problem once its "
+            "constraints are re-checked (no solver build, no IPOPT) instead of re-solving the "
+            "last stage from it"
+        },
+    )
     playback: bool = True  # run the MuJoCo playback check
 
     def __post_init__(self) -> None:
@@ -99,7 +109,9 @@ def _wrench_per_phase(wrench_w: np.ndarray, phase: np.ndarray) -> dict[str, list
     }
 
 
-def write_backflip_plots(flip: SampledFlip, playbacks: dict, folder: Path) -> list[Path]:
+def write_backflip_plots(
+    flip: SampledFlip, playbacks: dict, folder: Path, model: SagittalModel | None = None
+) -> list[Path]:
     """Phase-shaded joint torques and TO wrench, pitch angle (reference and MuJoCo playbacks)."""
     import matplotlib
 
@@ -116,9 +128,7 @@ def write_backflip_plots(flip: SampledFlip, playbacks: dict, folder: Path) -> li
             if np.any(m):
                 ax.axvspan(t[m][0], t[m][-1] + flip.dt_s, color=colors[p], alpha=0.12, label=name)
 
-    from optimal_control.backflip.sagittal import build_sagittal_model as _model
-
-    model = _model()
+    model = model or build_sagittal_model()
     paths = []
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     shade(axes[0])
@@ -222,16 +232,29 @@ def solve_backflip(
     cache_note = ""
     if not cfg.warm_start and out_cfg.use_cache and cached is not None and cached.is_file():
         try:
-            warm = load_solution(cached, "backflip cache file")
+            warm = load_cached_solution(cached, cfg)
             warm_source = str(cached)
+        except StaleCacheError as err:
+            cache_note = f"ignored the stale cache file (it will be replaced): {err}"
+            warnings.warn(cache_note, stacklevel=2)
         except ValueError as err:
             cache_note = f"ignored the corrupt cache file (it will be replaced): {err}"
             warnings.warn(cache_note, stacklevel=2)
             cached.unlink(missing_ok=True)
     t0 = time.perf_counter()
-    result: SolveResult = solve_backflip_to(
-        cfg, model, warm_start=warm, failure_path=failure_dir / "last_iterate.npz"
-    )
+    result: SolveResult | None = None
+    if warm is not None and out_cfg.reuse_cached_solution:
+        result = reuse_solution(cfg, warm, model)
+        if result is None:
+            cache_note = (
+                f"the cached solution {cached} does not meet the problem's constraints to "
+                "1e-6: re-solved from it"
+            )
+            warnings.warn(cache_note, stacklevel=2)
+    if result is None:
+        result = solve_backflip_to(
+            cfg, model, warm_start=warm, failure_path=failure_dir / "last_iterate.npz"
+        )
     solve_wall = time.perf_counter() - t0
     sol = result.solution
     grid = result.transcription.grid
@@ -245,9 +268,9 @@ def solve_backflip(
             + "\n  - ".join(audit.failures())
             + f"\nSolution and audit saved in {failure_dir} (failed_solution.npz, audit.json)."
         )
-    if cached is not None:
+    if cached is not None and not result.reused_cached_solution:
         try:
-            save_solution(sol, cached)
+            save_solution(sol, cached, cfg)
         except OSError as err:  # the cache only saves time: report, do not fail the run
             cache_note = f"could not write the cache file {cached}: {err}"
             warnings.warn(cache_note, stacklevel=2)
@@ -281,7 +304,11 @@ def solve_backflip(
     solver["cache_note"] = cache_note
     limits = fine_grid_limit_report(sol, grid, model)
     produced_by = {
-        "solve": "warm" if result.stats_dict().get("warm_started") else "cold",
+        "solve": "reused"
+        if result.reused_cached_solution
+        else "warm"
+        if result.warm_started
+        else "cold",
         "warm_start_from": warm_source or None,
         "ipopt_iterations": result.stats_dict().get("total_iterations"),
         "phase_durations_s": [float(d) for d in sol.durations_s],
@@ -333,7 +360,7 @@ def solve_backflip(
         atomic_write_text(
             tmp / "eta0_vs_paper.md", comparison_markdown(art.extra_summary["eta0_vs_paper"]) + "\n"
         )
-        write_backflip_plots(flip, playbacks, tmp / "plots")
+        write_backflip_plots(flip, playbacks, tmp / "plots", model)
 
     art, folder = solve_reference_oracle(
         "backflip", ref, oracle_cfg, summary, arrays, NOVICE_MODEL, finish, write_extra
@@ -347,6 +374,12 @@ def solve_backflip(
     return art, folder, report
 
 
+def _start_kind(solver: dict) -> str:
+    if solver.get("reused_cached_solution"):
+        return "cached solution of this problem reused, constraints re-checked"
+    return "warm start" if solver["warm_started"] else "cold start"
+
+
 def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> str:
     """Terminal summary: solve, audit, playback, eta0 table."""
     s = report["solver"]
@@ -354,7 +387,7 @@ def format_backflip_summary(art: OracleArtifact, folder: Path, report: dict) -> 
     lines = [
         f"backflip artifact: {folder}",
         f"  TO: {s['total_iterations']} IPOPT iterations, {s['solve_time_s']:.1f} s IPOPT + "
-        f"{s['build_time_s']:.1f} s build ({'warm' if s['warm_started'] else 'cold'} start), "
+        f"{s['build_time_s']:.1f} s build ({_start_kind(s)}), "
         f"{s['num_variables']} variables, max violation {s['max_violation']:.1e}",
         f"  audit: {'PASSED' if a['passed'] else 'FAILED'}; energy dE {a['energy_total_j']['delta_energy']:.1f} J "
         f"= joints {a['energy_total_j']['joint_work']:.1f} + wrench "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import time
@@ -45,6 +46,8 @@ class SolveResult:
     build_time_s: float  # time to build the NLP and the solver [s]
     warm_started: bool  # started from a cached / given solution
     violations: dict[str, float] = field(default_factory=dict)  # group -> max violation
+    # the cached solution of this very problem was checked and reused: no solver, no IPOPT
+    reused_cached_solution: bool = False
 
     @property
     def success(self) -> bool:
@@ -75,6 +78,7 @@ class SolveResult:
             "solve_time_s": self.solve_time_s,
             "total_iterations": self.total_iterations,
             "warm_started": self.warm_started,
+            "reused_cached_solution": self.reused_cached_solution,
             "num_variables": int(self.transcription.nlp["x"].shape[0]),
             "num_constraints": int(self.transcription.nlp["g"].shape[0]),
             "max_violation": self.max_violation,
@@ -178,13 +182,31 @@ def _problem_source_digest() -> str:
     return digest.hexdigest()
 
 
-def config_key(cfg: BackflipConfig) -> str:
-    """Hash of the fields that define the problem (not solver or I/O options) and of the code
-    that builds it."""
+def _robot_digest() -> str:
+    """Digest of the robot description the NLP is built from (URDF, armature table)."""
+    from robots.assets import g1_urdf_path
+
+    here = Path(__file__).resolve().parents[2]
+    digest = hashlib.sha1(g1_urdf_path().read_bytes())
+    digest.update((here / "robots" / "g1.py").read_bytes())
+    return digest.hexdigest()
+
+
+def problem_key(cfg: BackflipConfig) -> str:
+    """Full hash (40 hex digits) of everything that defines the problem and its solution: the
+    config fields that change the NLP (not solver or I/O options), the code that builds it, the
+    robot description and the CasADi (IPOPT) version."""
     skip = {"max_iter", "tol", "print_level", "warm_start", "cache_dir", "hessian"}
     data = {k: v for k, v in asdict(cfg).items() if k not in skip}
     data["_source"] = _problem_source_digest()
-    return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
+    data["_robot"] = _robot_digest()
+    data["_casadi"] = ca.__version__
+    return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+def config_key(cfg: BackflipConfig) -> str:
+    """Short form of :func:`problem_key`, used in cache file names."""
+    return problem_key(cfg)[:12]
 
 
 def _solver(tr: Transcription, cfg: BackflipConfig) -> ca.Function:
@@ -332,10 +354,28 @@ def cache_path(cfg: BackflipConfig) -> Path:
     return Path(cfg.cache_dir).expanduser() / f"backflip_{config_key(cfg)}.npz"
 
 
-def save_solution(sol: Solution, path: Path) -> Path:
-    """Write a solution as npz (for warm starts), atomically."""
+def save_solution(sol: Solution, path: Path, cfg: BackflipConfig | None = None) -> Path:
+    """Write a solution as npz (for warm starts), atomically. With ``cfg`` (the solution cache),
+    the file also holds the full :func:`problem_key` and the IPOPT tolerance it was solved to,
+    which :func:`load_cached_solution` checks."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    return atomic_save_npz(path, sol.to_npz_dict(), compressed=False)
+    arrays = sol.to_npz_dict()
+    if cfg is not None:
+        arrays |= {
+            CACHE_KEY_ARRAY: np.array(problem_key(cfg)),
+            CACHE_TOL_ARRAY: np.array(float(cfg.tol)),
+        }
+    return atomic_save_npz(path, arrays, compressed=False)
+
+
+CACHE_KEY_ARRAY = "cache_problem_key"
+"""Array of a cache file holding the :func:`problem_key` it was solved for."""
+CACHE_TOL_ARRAY = "cache_ipopt_tol"
+"""Array of a cache file holding the IPOPT tolerance it was solved to."""
+
+
+class StaleCacheError(ValueError):
+    """A cache file is a valid solution, but of another problem (or one solved less tightly)."""
 
 
 def load_solution(path: Path, what: str) -> Solution:
@@ -344,6 +384,10 @@ def load_solution(path: Path, what: str) -> Solution:
     Raises :class:`ValueError` (junk, truncated, missing arrays, non-finite values) or
     :class:`FileNotFoundError`, naming the file.
     """
+    return _load_solution_arrays(path, what)[0]
+
+
+def _load_solution_arrays(path: Path, what: str) -> tuple[Solution, dict]:
     arrays = read_npz(path, what)
     try:
         sol = Solution.from_npz(arrays)
@@ -355,4 +399,71 @@ def load_solution(path: Path, what: str) -> Solution:
     for name, value in arrays.items():
         if np.issubdtype(value.dtype, np.number) and not np.all(np.isfinite(value)):
             raise ValueError(f"{what} '{path}': array '{name}' has NaN/inf; pass another file.")
+    return sol, arrays
+
+
+def load_cached_solution(path: Path, cfg: BackflipConfig) -> Solution:
+    """Read the cache file of ``cfg`` and check that it was solved for this very problem.
+
+    Raises :class:`ValueError` if the file is not a solution (corrupt) and
+    :class:`StaleCacheError` if its stored :func:`problem_key` is missing or differs (a file of
+    an older code, robot or CasADi, or a file name collision) or it was solved to a looser
+    tolerance than ``cfg.tol``.
+    """
+    sol, arrays = _load_solution_arrays(path, "backflip cache file")
+    key = arrays.get(CACHE_KEY_ARRAY)
+    tol = arrays.get(CACHE_TOL_ARRAY)
+    if key is None or key.dtype.kind != "U" or str(key) != problem_key(cfg):
+        raise StaleCacheError(
+            f"backflip cache file '{path}' was solved for another problem (stored key "
+            f"{None if key is None else str(key)[:12]}, this problem {config_key(cfg)})."
+        )
+    if tol is None or not float(tol) <= cfg.tol:
+        raise StaleCacheError(
+            f"backflip cache file '{path}' was solved to IPOPT tol "
+            f"{None if tol is None else float(tol):.3g}, looser than the asked {cfg.tol:.3g}."
+        )
     return sol
+
+
+REUSE_VIOLATION_TOL = 1e-6
+"""A cached solution is reused only if it meets every constraint of the rebuilt problem (with
+its torque cut) to this (IPOPT's ``constr_viol_tol``)."""
+
+
+def reuse_solution(
+    cfg: BackflipConfig, sol: Solution, model: SagittalModel | None = None
+) -> SolveResult | None:
+    """The :class:`SolveResult` of a cached solution of ``cfg``'s problem, without a solver.
+
+    The cache file holds the solution IPOPT converged to for exactly this NLP (same
+    :func:`problem_key`, at least as tight a tolerance) and its torque cut; re-solving it
+    (41 IPOPT iterations on the flip, after a ~25 s build of the exact-Hessian solver) returns
+    it again to solver tolerance. Here the NLP's constraint functions alone are built (no
+    derivatives) and evaluated at the solution: it is returned if every constraint, with the
+    cut re-applied, holds to :data:`REUSE_VIOLATION_TOL`; otherwise None (re-solve it).
+    """
+    cfg.validate()
+    model = model or build_sagittal_model()
+    t0 = time.perf_counter()
+    tr = build_transcription(model, cfg)
+    if sol.r.shape[0] != tr.grid.num_knots:
+        return None
+    g_fn = ca.Function("backflip_g", [tr.nlp["x"], tr.nlp["p"]], [tr.nlp["g"]])
+    x = tr.pack(sol)
+    g = np.asarray(g_fn(x, cfg.wrench_weights[-1])).ravel()
+    build_time = time.perf_counter() - t0
+    nj = len(model.effort_limit_nm)
+    cut = sol.torque_cut
+    if cut is not None and cut.shape == (len(tr.torque_sample_u), nj):
+        lbg, ubg = apply_torque_cut(tr, cut)
+    elif cut is None:
+        lbg, ubg = tr.lbg, tr.ubg
+    else:
+        return None
+    strict = constraint_violations(dataclasses.replace(tr, lbg=lbg, ubg=ubg), x, g)
+    if max(strict.values(), default=0.0) > REUSE_VIOLATION_TOL:
+        return None
+    return SolveResult(
+        sol, tr, [], build_time, True, constraint_violations(tr, x, g), reused_cached_solution=True
+    )
