@@ -41,14 +41,23 @@ class OneLineParser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see `{self.prog} --help`)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser with every subcommand registered."""
+def command_name(module_name: str) -> str:
+    """The subcommand a module of :data:`COMMAND_MODULES` registers (``solve_walk`` ->
+    ``solve-walk``)."""
+    return module_name.rsplit(".", 1)[1].replace("_", "-")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser with every subcommand registered, or only ``command``'s when it names
+    one (a command line that names its command does not import the others' libraries: torch,
+    rsl-rl and MuJoCo cost seconds for ``solve-backflip``)."""
     parser = OneLineParser(
         prog="a2cf-mb",
         description="A2CF with a model-based wrench oracle for the Unitree G1.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for module_name in COMMAND_MODULES:
+    names = {command_name(m): m for m in COMMAND_MODULES}
+    for module_name in [names[command]] if command in names else COMMAND_MODULES:
         importlib.import_module(module_name).register(subparsers)
     return parser
 
@@ -107,7 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.formatwarning = _format_warning
     command = "a2cf-mb"
     try:
-        args = build_parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(argv[0] if argv else None).parse_args(argv)
         command = f"a2cf-mb {args.command}"
         result = args.func(args)
     except KeyboardInterrupt:

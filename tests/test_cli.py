@@ -7,7 +7,7 @@ import json
 import pytest
 
 from a2cf_mb.bench.sim import SimBenchConfig, format_results, run_sim_benchmark
-from a2cf_mb.cli import build_parser, main
+from a2cf_mb.cli import UsageError, build_parser, main
 
 
 def test_help_lists_subcommands(capsys):
@@ -81,3 +81,17 @@ def test_percent_in_a_config_comment_does_not_break_help():
     parser = argparse.ArgumentParser()
     add_config_arguments(parser, Cfg)
     assert "95%" in parser.format_help()
+
+
+def test_a_named_command_does_not_import_the_others_libraries() -> None:
+    """``a2cf-mb solve-backflip ...`` builds only its own parser: torch and rsl-rl (the RL
+    commands') stay unimported; an unknown command still lists every command."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from a2cf_mb.cli import build_parser; build_parser('solve-backflip'); "
+            "print(sorted({'torch', 'rsl_rl'} & set(sys.modules)))")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    with pytest.raises(UsageError, match="invalid choice.*solve-backflip"):
+        build_parser("nosuch").parse_args(["nosuch"])
