@@ -495,5 +495,6 @@ def test_reused_cache_gives_the_eta0_of_a_warm_re_solve(tmp_path):
     assert rep["solver"]["reused_cached_solution"]
     resolved, _, rep = run("resolved", reuse_cached_solution=False)
     assert rep["solver"]["warm_started"] and not rep["solver"]["reused_cached_solution"]
-    np.testing.assert_array_equal(reused.eta0, cold.eta0)
+    # same solution; the novice QPs after it agree to their round-off (not bit for bit)
+    np.testing.assert_allclose(reused.eta0, cold.eta0, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(resolved.eta0, reused.eta0, rtol=0.02, atol=0.5)
