@@ -116,8 +116,10 @@ def render_reference(
         frames = frames[: cfg.max_frames]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    # Written beside the target and renamed at the end: a kill mid-video leaves no torn mp4.
+    tmp = path.with_name(f".{path.stem}.partial{os.getpid()}{path.suffix}")
     try:
-        with imageio.get_writer(path, fps=fps, macro_block_size=1) as writer:
+        with imageio.get_writer(tmp, fps=fps, macro_block_size=1) as writer:
             for t in frames:
                 data.qpos[:] = pin_to_mj_qpos(ref.q[t])
                 mujoco.mj_forward(model, data)
@@ -126,6 +128,8 @@ def render_reference(
                     start = data.xipos[pelvis].copy()
                     _add_arrow(renderer.scene, start, cfg.force_arrow_m_per_n * wrench_w[t, :3])
                 writer.append_data(renderer.render())
+        os.replace(tmp, path)
     finally:
         renderer.close()
+        tmp.unlink(missing_ok=True)
     return path

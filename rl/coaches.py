@@ -114,6 +114,7 @@ class ArtifactCoach:
         from optimal_control.coach import CoachConfig, coach_from_artifact
 
         self.artifact = OracleArtifact.load(folder)
+        self._anchors: dict[str | None, float] = {}
         self.coach = coach_from_artifact(
             self.artifact,
             CoachConfig(band_position_m=cfg.band_position_m,
@@ -121,7 +122,12 @@ class ArtifactCoach:
         )  # fmt: skip
 
     def anchor_time_s(self, phase: str | None) -> float:
-        """Time of the artifact's first frame in ``phase`` [s] (0 for None)."""
+        """Time of the artifact's first frame in ``phase`` [s] (0 for None); computed once."""
+        if phase not in self._anchors:
+            self._anchors[phase] = self._first_frame_time_s(phase)
+        return self._anchors[phase]
+
+    def _first_frame_time_s(self, phase: str | None) -> float:
         if phase is None:
             return 0.0
         names = list(self.artifact.phase_names)

@@ -454,12 +454,14 @@ def build_training(
     if eta0 is None:
         eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(cfg.env, task)
-    if cfg.warmstart_motion and env.command_gen.reference_joint_pos_rad() is None:
-        env.close()
-        raise ValueError(
-            f"--warmstart-motion needs a time-indexed joint reference; task '{task.name}' has "
-            "none (its command gives no reference_joint_pos_rad): use it with dance"
-        )
+    if cfg.warmstart_motion:
+        from rl.warmstart import require_joint_reference
+
+        try:
+            require_joint_reference(env)
+        except ValueError:
+            env.close()
+            raise
     env.set_random_mask_prob(cfg.random_mask_prob if mode.random_mask else 0.0)
     if mode.assist:
         curriculum = AssistCurriculum(initial_bounds(task, mode, eta0), cfg.curriculum)

@@ -157,6 +157,15 @@ def distill_assist_head(
     return _report(actor, obs, target, bound, cfg, num)
 
 
+def require_joint_reference(env: G1VecEnv) -> None:
+    """Refuse ``--warmstart-motion`` on a task whose command has no joint reference."""
+    if env.command_gen.reference_joint_pos_rad() is None:
+        raise ValueError(
+            f"--warmstart-motion needs a time-indexed joint reference; task '{env.task.name}' "
+            "has none (its command gives no reference_joint_pos_rad): use it with dance"
+        )
+
+
 def distill_motion_head(
     actor: A2CFActor, env: G1VecEnv, cfg: WarmStartConfig = WarmStartConfig()
 ) -> dict[str, Any]:
@@ -169,11 +178,7 @@ def distill_motion_head(
     the motion std is left as configured. Report: per body part RMSE of the cloned joint targets
     [rad] and R^2 on held-out states.
     """
-    if env.command_gen.reference_joint_pos_rad() is None:
-        raise ValueError(
-            f"--warmstart-motion needs a time-indexed joint reference; task '{env.task.name}' "
-            "has none (its command gives no reference_joint_pos_rad): use it with dance"
-        )
+    require_joint_reference(env)
     nj = g1.NUM_JOINTS
 
     def label(e: G1VecEnv) -> tuple[torch.Tensor, torch.Tensor]:

@@ -150,6 +150,45 @@ def test_render_two_tiny_frames(walk_plan, tmp_path):
         wrench_w=np.ones((walk_plan.reference.num_frames, 6)),
     )
     assert path.stat().st_size > 0
+    assert [p.name for p in tmp_path.iterdir()] == ["r.mp4"]  # no temporary file left
+
+
+def test_a_render_killed_mid_video_leaves_the_old_file_and_no_partial(
+    walk_plan, tmp_path, monkeypatch
+):
+    """The mp4 is written beside the target and renamed at the end (eval --video, the demo)."""
+    import imageio.v2 as imageio
+
+    from optimal_control.render import RenderConfig, render_reference
+
+    real = imageio.get_writer
+
+    class Dying:
+        def __init__(self, *args, **kwargs):
+            self.writer = real(*args, **kwargs)
+            self.frames = 0
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.writer.close()
+
+        def append_data(self, frame):
+            self.frames += 1
+            if self.frames == 2:
+                raise KeyboardInterrupt  # a kill between two frames
+            self.writer.append_data(frame)
+
+    target = tmp_path / "r.mp4"
+    target.write_bytes(b"the previous video")
+    monkeypatch.setattr(imageio, "get_writer", Dying)
+    with pytest.raises(KeyboardInterrupt):
+        render_reference(
+            walk_plan.reference, target, RenderConfig(width=96, height=64, max_frames=3)
+        )
+    assert target.read_bytes() == b"the previous video"
+    assert [p.name for p in tmp_path.iterdir()] == ["r.mp4"]
 
 
 @pytest.mark.slow

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import matplotlib
 
+from optimal_control.files import atomic_savefig, atomic_write_json, atomic_write_text
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
@@ -80,8 +82,8 @@ for ax, title in zip(axes, titles, strict=True):
     ax.legend(fontsize=7)
 fig.tight_layout()
 args.out.mkdir(parents=True, exist_ok=True)
-fig.savefig(args.out / "curves.png", dpi=100)
-(args.out / "summary.json").write_text(json.dumps(summary, indent=2))
+atomic_savefig(fig, args.out / "curves.png", dpi=100)
+atomic_write_json(args.out / "summary.json", summary)
 lines = ["| run | env steps | steps to ep. length " + " / ".join(map(str, args.length))
          + " | ep. length (last 20 it) | eval (assist off): survival, ep. length, joint err [rad] |",
          "|---|---|---|---|---|"]  # fmt: skip
@@ -96,5 +98,5 @@ for name, e in summary.items():
     )
     lines.append(f"| {name} | {e['env_steps'] / 1e6:.2f} M | {hits} | "
                  f"{e['final_mean_episode_length_last20']:.0f} | {evals} |")  # fmt: skip
-(args.out / "summary.md").write_text("\n".join(lines) + "\n")
+atomic_write_text(args.out / "summary.md", "\n".join(lines) + "\n")
 print("\n".join(lines))

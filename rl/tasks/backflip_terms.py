@@ -378,8 +378,7 @@ class BackflipSkill(SkillMeasure):
         """Judge the finished episodes from their last state and push the counted ones."""
         success = time_outs & backflip_success(state, self.cfg)[env_ids]
         self.last_env_ids, self.last_success = env_ids.clone(), success.clone()
-        counted = ~time_outs | (lived_steps >= self.max_episode_length)
-        self.window.push(success[counted])
+        self.window.push(success[self.counted(time_outs, lived_steps)])
 
     def success_rate(self) -> float:
         """Success fraction of the window (0 before any counted episode) [-]."""

@@ -171,6 +171,13 @@ class SkillMeasure(Component, ABC):
     def progress(self) -> float:
         """Skill relative to its target, in [0, 1+]."""
 
+    max_episode_length: int  # policy steps of a full episode (set by the measure's constructor)
+
+    def counted(self, time_outs: torch.Tensor, lived_steps: torch.Tensor) -> torch.Tensor:
+        """Finished episodes a skill window counts: failures, and time-outs after a full episode
+        (not those a runner's random episode start cut short)."""
+        return ~time_outs | (lived_steps >= self.max_episode_length)
+
 
 @dataclass(frozen=True)
 class SurvivalSkillConfig:
@@ -206,9 +213,7 @@ class SurvivalSkill(SkillMeasure):
         state: EnvState,
     ) -> None:
         """Push flags; episodes cut short by a time limit before a full episode are skipped."""
-        fell = ~time_outs
-        survived = time_outs & (lived_steps >= self.max_episode_length)
-        self.window.push(survived[fell | survived])
+        self.window.push(time_outs[self.counted(time_outs, lived_steps)])
 
     def progress(self) -> float:
         """Survival fraction of the window over ``target_survival`` (0 before any episode)."""

@@ -397,8 +397,7 @@ class TrackingSkill(SkillMeasure):
         """Push the error of each counted finished episode."""
         err = joint_error_mean_abs(state)[env_ids]
         err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
-        counted = ~time_outs | (lived_steps >= self.max_episode_length)
-        self.window.push(err[counted])
+        self.window.push(err[self.counted(time_outs, lived_steps)])
 
     def mean_error_rad(self) -> float:
         """Mean error of the window [rad] (inf before any counted episode)."""
