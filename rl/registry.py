@@ -14,7 +14,7 @@ from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
 from rl.tasks.backflip import BACKFLIP
 from rl.tasks.config import TaskConfig
-from rl.tasks.dance import DANCE
+from rl.tasks.dance import DANCE, DANCE_PAPER
 from rl.tasks.stand import STAND
 from rl.tasks.walk import WALK
 
@@ -23,6 +23,7 @@ TASKS: dict[str, TaskConfig] = {
     WALK.name: WALK,
     BACKFLIP.name: BACKFLIP,
     DANCE.name: DANCE,
+    DANCE_PAPER.name: DANCE_PAPER,
 }
 """Registered tasks by name, each with its default config."""
 
