@@ -16,11 +16,13 @@ from rl.tasks.backflip import BACKFLIP
 from rl.tasks.config import TaskConfig
 from rl.tasks.dance import DANCE, DANCE_PAPER
 from rl.tasks.stand import STAND
-from rl.tasks.walk import WALK
+from rl.tasks.walk import WALK, WALK_FLAT, WALK_PAPER
 
 TASKS: dict[str, TaskConfig] = {
     STAND.name: STAND,
     WALK.name: WALK,
+    WALK_FLAT.name: WALK_FLAT,
+    WALK_PAPER.name: WALK_PAPER,
     BACKFLIP.name: BACKFLIP,
     DANCE.name: DANCE,
     DANCE_PAPER.name: DANCE_PAPER,

@@ -8,9 +8,12 @@ beyond its argument.
 
 from __future__ import annotations
 
+import functools
+
 import torch
 
 from rl.envs.state import EnvState
+from robots import g1
 
 
 def alive(s: EnvState) -> torch.Tensor:
@@ -31,6 +34,21 @@ def base_height(s: EnvState, target_m: float, std_m: float = 0.1) -> torch.Tenso
 def joint_deviation_l2(s: EnvState) -> torch.Tensor:
     """Sum of squared joint offsets from the default pose [rad^2]."""
     return (s.joint_pos_rad - s.default_joint_pos_rad).square().sum(-1)
+
+
+def joint_deviation_named_l2(s: EnvState, joints: tuple[str, ...]) -> torch.Tensor:
+    """Sum of squared offsets from the default pose of the named joints [rad^2] (pose terms that
+    hold, e.g., the waist and arms while the legs walk)."""
+    idx = _joint_indices(joints)
+    return (s.joint_pos_rad[:, idx] - s.default_joint_pos_rad[idx]).square().sum(-1)
+
+
+@functools.lru_cache(maxsize=32)
+def _joint_indices(joints: tuple[str, ...]) -> list[int]:
+    unknown = [j for j in joints if j not in g1.JOINT_NAMES]
+    if unknown:
+        raise ValueError(f"unknown G1 joints {unknown}; joints: {list(g1.JOINT_NAMES)}")
+    return [g1.JOINT_NAMES.index(j) for j in joints]
 
 
 def action_rate_l2(s: EnvState) -> torch.Tensor:

@@ -13,6 +13,7 @@ The height scan (1.6 m x 1.0 m at 0.1 m around the pelvis) is privileged (assist
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,7 +23,7 @@ from rl import rewards, terminations
 from rl.curriculum import paper_bound_rows
 from rl.envs.state import EnvState
 from rl.tasks import walk_terms
-from rl.tasks.components import Command, SinglePhaseConfig, SkillMeasure
+from rl.tasks.components import Command, SinglePhaseConfig, SkillMeasure, SurvivalSkillConfig
 from rl.tasks.config import (
     ObservationsConfig,
     PushConfig,
@@ -30,10 +31,11 @@ from rl.tasks.config import (
     SceneConfig,
     TaskConfig,
 )
-from rl.tasks.stand import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION
+from rl.tasks.stand import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, STAND_OBSERVATIONS
 from rl.tasks.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 from rl.tasks.terrain import Terrain, TerrainConfig
 from rl.tasks.walk_eval import WalkEvaluationConfig
+from robots import g1
 
 WALK_TERRAIN = Terrain(TerrainConfig())
 """The walk task's terrain (built on first use), shared by scene, curriculum and height scan."""
@@ -42,14 +44,19 @@ WALK_TERRAIN = Terrain(TerrainConfig())
 # ------------------------------------------------------------------------------------ command
 @dataclass(frozen=True)
 class VelocityCommandConfig:
-    """Uniform velocity commands in the pelvis frame, resampled within the episode."""
+    """Uniform velocity commands in the pelvis frame, resampled within the episode; optionally a
+    gait clock (appended to the command) and a command curriculum (ranges widened while the
+    robots track)."""
 
     lin_vel_x_range_mps: tuple[float, float] = (-0.6, 1.2)  # forward velocity [m/s]
     lin_vel_y_range_mps: tuple[float, float] = (-0.8, 0.8)  # lateral velocity [m/s]
     ang_vel_z_range_rps: tuple[float, float] = (-1.5, 1.5)  # yaw rate [rad/s]
     resampling_time_range_s: tuple[float, float] = (4.0, 8.0)  # time between two draws [s]
     standing_fraction: float = 0.1  # share of draws that command standing still (zeros) [-]
-    dim: int = 3  # command width C: vx, vy, yaw rate [-]
+    gait_period_s: float = 0.0  # period of the gait clock appended as (sin, cos); 0: no clock [s]
+    curriculum_initial_scale: float = 1.0  # ranges start at this fraction of the above [-]
+    curriculum_error_mps: float = 0.25  # ranges widen while the mean velocity error is below [m/s]
+    curriculum_rate_per_s: float = 0.01  # widening of the scale per second of env time [1/s]
 
     def __post_init__(self) -> None:
         for name in (
@@ -67,8 +74,20 @@ class VelocityCommandConfig:
             raise ValueError(
                 f"velocity command standing_fraction must be in [0, 1], got {self.standing_fraction}"
             )
-        if self.dim != 3:
-            raise ValueError("the velocity command has dim 3 (vx, vy, yaw rate)")
+        if self.gait_period_s < 0:
+            raise ValueError(
+                f"velocity command gait_period_s must be >= 0, got {self.gait_period_s}"
+            )
+        if not 0.0 < self.curriculum_initial_scale <= 1.0:
+            raise ValueError(
+                "velocity command curriculum_initial_scale must be in (0, 1], got "
+                f"{self.curriculum_initial_scale}"
+            )
+
+    @property
+    def dim(self) -> int:
+        """Command width C: vx, vy, yaw rate (+ sin, cos of the gait clock) [-]."""
+        return 5 if self.gait_period_s > 0 else 3
 
     def build(self, num_envs: int, generator: torch.Generator) -> VelocityCommand:
         """The live command generator (draws from the env's generator)."""
@@ -76,46 +95,85 @@ class VelocityCommandConfig:
 
 
 class VelocityCommand(Command):
-    """Per-env (vx, vy, yaw rate) with a countdown to the next draw; see the config."""
+    """Per-env (vx, vy, yaw rate) with a countdown to the next draw, the gait clock and the
+    command curriculum's scale; see the config."""
 
     def __init__(self, cfg: VelocityCommandConfig, num_envs: int, generator: torch.Generator):
         self.cfg = cfg
         self.generator = generator
-        self.command = torch.zeros(num_envs, 3)
+        self.command = torch.zeros(num_envs, cfg.dim)
         self.time_left_s = torch.zeros(num_envs)
+        self.clock_s = torch.zeros(num_envs)  # time since the episode's start [s]
+        self.scale = torch.tensor(cfg.curriculum_initial_scale)  # command curriculum [-]
+        self.error_mps = torch.tensor(0.0)  # running mean velocity error (0.5 s time constant)
         ranges = (cfg.lin_vel_x_range_mps, cfg.lin_vel_y_range_mps, cfg.ang_vel_z_range_rps)
         self._low = torch.tensor([r[0] for r in ranges])
         self._high = torch.tensor([r[1] for r in ranges])
 
     def resample(self, env_ids: torch.Tensor) -> None:
-        """Draw new commands and countdowns for ``env_ids`` (M,)."""
+        """Draw new commands and countdowns for ``env_ids`` (M,) within the scaled ranges."""
         m, gen = env_ids.numel(), self.generator
         if m == 0:
             return
-        draw = self._low + (self._high - self._low) * torch.rand(m, 3, generator=gen)
+        low, high = self._low * self.scale, self._high * self.scale
+        draw = low + (high - low) * torch.rand(m, 3, generator=gen)
         standing = torch.rand(m, generator=gen) < self.cfg.standing_fraction
-        self.command[env_ids] = torch.where(standing[:, None], torch.zeros_like(draw), draw)
-        low, high = self.cfg.resampling_time_range_s
-        self.time_left_s[env_ids] = low + (high - low) * torch.rand(m, generator=gen)
+        self.command[env_ids, :3] = torch.where(standing[:, None], torch.zeros_like(draw), draw)
+        t_low, t_high = self.cfg.resampling_time_range_s
+        self.time_left_s[env_ids] = t_low + (t_high - t_low) * torch.rand(m, generator=gen)
 
     def reset(self, env_ids: torch.Tensor) -> None:
-        """A new episode starts with a new command."""
+        """A new episode starts with a new command and the clock at 0."""
         self.resample(env_ids)
+        self.clock_s[env_ids] = 0.0
+        self._write_clock()
+
+    def _write_clock(self) -> None:
+        if self.cfg.gait_period_s > 0:
+            angle = 2 * torch.pi * (self.clock_s / self.cfg.gait_period_s % 1.0)
+            self.command[:, 3] = torch.sin(angle)
+            self.command[:, 4] = torch.cos(angle)
 
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
-        """Count down by ``dt_s`` [s], redraw the expired commands; (N, 3)."""
+        """Count down by ``dt_s`` [s], redraw the expired commands, advance the clock and the
+        curriculum; (N, C)."""
+        cfg = self.cfg
+        if dt_s > 0 and self.scale < 1.0:
+            error = (state.base_lin_vel_b[:, :2] - self.command[:, :2]).norm(dim=-1).mean()
+            self.error_mps += (error - self.error_mps) * min(dt_s / 0.5, 1.0)
+            if self.error_mps < cfg.curriculum_error_mps:
+                self.scale = (self.scale + cfg.curriculum_rate_per_s * dt_s).clamp(max=1.0)
         self.time_left_s -= dt_s
         self.resample((self.time_left_s <= 0).nonzero().flatten())
+        self.clock_s += dt_s
+        self._write_clock()
         return self.command
 
+    def log(self) -> dict[str, float]:
+        """``Curriculum/command_scale`` (when the curriculum is on)."""
+        return (
+            {"Curriculum/command_scale": float(self.scale)}
+            if self.cfg.curriculum_initial_scale < 1
+            else {}
+        )
+
     def state_dict(self) -> dict[str, Any]:
-        """Commands and countdowns."""
-        return {"command": self.command.clone(), "time_left_s": self.time_left_s.clone()}
+        """Commands, countdowns, clocks and the curriculum."""
+        return {
+            "command": self.command.clone(),
+            "time_left_s": self.time_left_s.clone(),
+            "clock_s": self.clock_s.clone(),
+            "scale": self.scale.clone(),
+            "error_mps": self.error_mps.clone(),
+        }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` output."""
         self.command.copy_(state["command"])
         self.time_left_s.copy_(state["time_left_s"])
+        self.clock_s.copy_(state["clock_s"])
+        self.scale = state["scale"].clone()
+        self.error_mps = state["error_mps"].clone()
 
 
 # --------------------------------------------------------------------- terrain curriculum
@@ -302,39 +360,110 @@ WALK_OBSERVATIONS = ObservationsConfig(
 )
 
 
-WALK = TaskConfig(
-    name="walk",
-    description="follow velocity commands on rough terrain (10-level terrain curriculum)",
-    observations=WALK_OBSERVATIONS,
-    rewards=(
-        RewardTerm("track_lin_vel_xy", walk_terms.track_lin_vel_xy_exp, weight=5.0),
-        RewardTerm("track_ang_vel_z", walk_terms.track_ang_vel_z_exp, weight=2.0),
-        RewardTerm("feet_air_time", walk_terms.feet_air_time, weight=1.0),
-        RewardTerm("feet_slide", rewards.feet_slide, weight=-1.0),
-        RewardTerm("cost_of_transport", walk_terms.cost_of_transport, weight=-0.01),
-        RewardTerm("stand_still", walk_terms.stand_still, weight=-0.1),
-        RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.01),
-        RewardTerm("joint_acc", rewards.joint_acc_l2, weight=-2.5e-7),
-        RewardTerm("joint_pos_limits", rewards.joint_pos_limits, weight=-1.0),
-        RewardTerm("orientation", rewards.orientation_l2, weight=-1.0),
+_WALK_PAPER_REWARDS = (
+    RewardTerm("track_lin_vel_xy", walk_terms.track_lin_vel_xy_exp, weight=5.0),
+    RewardTerm("track_ang_vel_z", walk_terms.track_ang_vel_z_exp, weight=2.0),
+    RewardTerm("feet_air_time", walk_terms.feet_air_time, weight=1.0),
+    RewardTerm("feet_slide", rewards.feet_slide, weight=-1.0),
+    RewardTerm("cost_of_transport", walk_terms.cost_of_transport, weight=-0.01),
+    RewardTerm("stand_still", walk_terms.stand_still, weight=-0.1),
+    RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.01),
+    RewardTerm("joint_acc", rewards.joint_acc_l2, weight=-2.5e-7),
+    RewardTerm("joint_pos_limits", rewards.joint_pos_limits, weight=-1.0),
+    RewardTerm("orientation", rewards.orientation_l2, weight=-1.0),
+)
+"""The paper's walking reward table, term for term (no survival term: falling pays, see
+``docs/environments.md``)."""
+
+UPPER_BODY_JOINTS = tuple(
+    name for name in g1.JOINT_NAMES if name.startswith(("waist", "left_s", "left_e", "left_w",
+                                                         "right_s", "right_e", "right_w"))
+)  # fmt: skip
+"""Waist and arm joints (held near the default pose by the walk's pose term)."""
+
+HIP_ROLL_YAW_JOINTS = (
+    "left_hip_roll_joint", "left_hip_yaw_joint", "right_hip_roll_joint", "right_hip_yaw_joint",
+)  # fmt: skip
+"""Hip joints that splay the legs when free (unitree_rl_gym's hip_pos term)."""
+
+WALK_REWARDS = (
+    RewardTerm("track_lin_vel_xy", walk_terms.track_lin_vel_xy_exp, weight=1.0),
+    RewardTerm("track_ang_vel_z", walk_terms.track_ang_vel_z_exp, weight=0.5),
+    RewardTerm("alive", rewards.alive, weight=0.5),
+    # times dt 0.02 s: -2 per fall, so that falling never pays (tests/test_reward_recipes.py)
+    RewardTerm("termination", rewards.termination, weight=-100.0),
+    RewardTerm("gait_contact", walk_terms.gait_contact, weight=0.18),
+    RewardTerm("feet_swing_height", walk_terms.feet_swing_height, weight=-20.0),
+    RewardTerm("energy", walk_terms.energy_per_weight, weight=-0.1),
+    RewardTerm("lin_vel_z", walk_terms.lin_vel_z_l2, weight=-2.0),
+    RewardTerm("ang_vel_xy", rewards.base_ang_vel_xy_l2, weight=-0.05),
+    RewardTerm("orientation", rewards.orientation_l2, weight=-1.0),
+    RewardTerm("hip_pose", rewards.joint_deviation_named_l2, weight=-1.0,
+               params={"joints": HIP_ROLL_YAW_JOINTS}),
+    RewardTerm("upper_body_pose", rewards.joint_deviation_named_l2, weight=-0.5,
+               params={"joints": UPPER_BODY_JOINTS}),
+    RewardTerm("stand_still", walk_terms.stand_still, weight=-0.1),
+    RewardTerm("feet_slide", rewards.feet_slide, weight=-0.2),
+    RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.01),
+    RewardTerm("joint_acc", rewards.joint_acc_l2, weight=-2.5e-7),
+    RewardTerm("joint_vel", rewards.joint_vel_l2, weight=-1e-3),
+    RewardTerm("joint_pos_limits", rewards.joint_pos_limits, weight=-5.0),
+)  # fmt: skip
+"""The walk recipe that learns (unitree_rl_gym's G1 terms with a survival term, a gait clock, pose
+terms and a mass-normalised energy term paid only under moving commands)."""
+
+WALK_COMMANDS = VelocityCommandConfig(
+    lin_vel_x_range_mps=(-0.5, 1.0),
+    lin_vel_y_range_mps=(-0.3, 0.3),
+    ang_vel_z_range_rps=(-1.0, 1.0),
+    gait_period_s=0.8,
+    curriculum_initial_scale=0.3,
+)
+"""Commands of the walk recipe: a 0.8 s gait clock and ranges that start at 30 % and widen while the
+robots track within 0.25 m/s."""
+
+_WALK_TERMINATIONS = (
+    TerminationTerm(
+        "base_contact", terminations.link_on_ground, params={"bodies": ("pelvis", "torso_link")}
     ),
-    terminations=(
-        TerminationTerm(
-            "base_contact",
-            terminations.link_on_ground,
-            params={"bodies": ("pelvis", "torso_link")},
-        ),
-        TerminationTerm("tilted", terminations.base_tilted, params={"max_tilt_rad": 1.0}),
-    ),
+    TerminationTerm("tilted", terminations.base_tilted, params={"max_tilt_rad": 1.0}),
+)
+
+WALK_FLAT = TaskConfig(
+    name="walk-flat",
+    description="follow velocity commands on flat ground (gait clock, command curriculum)",
+    observations=STAND_OBSERVATIONS,
+    rewards=WALK_REWARDS,
+    terminations=_WALK_TERMINATIONS,
     assist_bound=paper_bound_rows("walk"),
     episode_length_s=20.0,
-    scene=SceneConfig(terrain=WALK_TERRAIN),
     pushes=PushConfig(interval_range_s=(5.0, 10.0), velocity_xy_mps=0.5),
     randomization=RandomizationConfig(),
-    commands=VelocityCommandConfig(),
+    commands=WALK_COMMANDS,
     phases=SinglePhaseConfig(names=("walk",)),
-    skill=TerrainCurriculumConfig(),
+    skill=SurvivalSkillConfig(target_survival=0.9),
     less_assist_weight=2.0,
     evaluation=WalkEvaluationConfig(),
 )
-"""The walk task."""
+"""Walking on a plane: the target at CPU scale and the first stage of ``walk``."""
+
+WALK = dataclasses.replace(
+    WALK_FLAT,
+    name="walk",
+    description="follow velocity commands on rough terrain (10-level terrain curriculum)",
+    observations=WALK_OBSERVATIONS,
+    scene=SceneConfig(terrain=WALK_TERRAIN),
+    # the swing-height term reads sole heights above z = 0, which only a plane makes right
+    rewards=tuple(t for t in WALK_REWARDS if t.name != "feet_swing_height"),
+    skill=TerrainCurriculumConfig(),
+)
+"""The walk task: the walk-flat recipe on the terrain curriculum (level 0 first)."""
+
+WALK_PAPER = dataclasses.replace(
+    WALK,
+    name="walk-paper",
+    description="the walk with the paper's reward table and command ranges (falling pays)",
+    rewards=_WALK_PAPER_REWARDS,
+    commands=VelocityCommandConfig(),
+)
+"""The walk with the paper's reward table term for term, and the old wide commands at once."""

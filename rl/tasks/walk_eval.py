@@ -36,25 +36,26 @@ class WalkEvaluator:
     """Accumulates per-env tracking errors and distance over each env's first episode."""
 
     def __init__(self, cfg: WalkEvaluationConfig, env: Any) -> None:
+        n = env.num_envs
         curriculum = env.skill
-        if not hasattr(curriculum, "pin_tiles"):
-            raise ValueError(
-                f"the walk evaluation needs the terrain curriculum as skill measure; task "
-                f"'{env.task.name}' has {type(curriculum).__name__}"
-            )
-        terrain = curriculum.terrain
-        rows = terrain.num_rows
-        bad = [lv for lv in cfg.levels if not 0 <= lv < rows]
-        if bad or not cfg.levels:
-            raise ValueError(f"walk evaluation levels {bad or '()'} outside [0, {rows - 1}]")
-        n, cols = env.num_envs, terrain.num_cols
-        i = torch.arange(n)
-        levels = torch.tensor(cfg.levels)[(i // cols) % len(cfg.levels)]
-        self.tiles = torch.stack([levels, i % cols], dim=-1)
-        curriculum.pin_tiles(self.tiles)
-        env.reset_envs(torch.arange(env.num_envs))
-        self.curriculum = curriculum
-        self.types = [terrain.tile_type(int(c)) for c in self.tiles[:, 1]]
+        self.curriculum = curriculum if hasattr(curriculum, "pin_tiles") else None
+        if self.curriculum is not None:  # rough terrain: pin the robots to the levels tested
+            terrain = curriculum.terrain
+            rows = terrain.num_rows
+            bad = [lv for lv in cfg.levels if not 0 <= lv < rows]
+            if bad or not cfg.levels:
+                raise ValueError(f"walk evaluation levels {bad or '()'} outside [0, {rows - 1}]")
+            cols = terrain.num_cols
+            i = torch.arange(n)
+            levels = torch.tensor(cfg.levels)[(i // cols) % len(cfg.levels)]
+            self.tiles = torch.stack([levels, i % cols], dim=-1)
+            curriculum.pin_tiles(self.tiles)
+            self.types = [terrain.tile_type(int(c)) for c in self.tiles[:, 1]]
+        else:  # flat ground: one "flat" row at level 0
+            self.tiles = torch.zeros(n, 2, dtype=torch.long)
+            self.types = ["flat"] * n
+        env.reset_envs(torch.arange(n))
+        self.start_xy_w = env.env_state.base_pos_w[:, :2].clone()
         self.lin_error_sum = torch.zeros(n)
         self.yaw_error_sum = torch.zeros(n)
         self.steps = torch.zeros(n)
@@ -71,7 +72,7 @@ class WalkEvaluator:
         self.lin_error_sum += torch.where(alive, lin, 0.0)
         self.yaw_error_sum += torch.where(alive, yaw, 0.0)
         self.steps += alive.float()
-        dist = (s.base_pos_w[:, :2] - self.curriculum.spawn_xy_w[: env.num_envs]).norm(dim=-1)
+        dist = (s.base_pos_w[:, :2] - self.start_xy_w).norm(dim=-1)
         self.distance_m = torch.where(alive, dist, self.distance_m)
         self.fell |= active & done & ~extras["time_outs"].bool().cpu()
 

@@ -1,8 +1,9 @@
 """Walk-specific terms: velocity tracking, feet air time, cost of transport, stand still, and the
 height scan observation. Pure functions of the batched :class:`EnvState`; reward terms return (N,).
 
-The command is ``s.command`` (N, 3): forward and lateral velocity in the pelvis frame [m/s] and yaw
-rate [rad/s] (:class:`rl.tasks.walk.VelocityCommandConfig`).
+The command is ``s.command`` (N, 3) or (N, 5): forward and lateral velocity in the pelvis frame
+[m/s], yaw rate [rad/s] and, with a gait clock, sin and cos of the clock's phase
+(:class:`rl.tasks.walk.VelocityCommandConfig`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,53 @@ from rl.envs.state import EnvState
 from rl.tasks.terrain import HeightMap, Terrain
 
 GRAVITY_MPS2 = 9.81
+
+
+def moving(s: EnvState, min_command: float = 0.1) -> torch.Tensor:
+    """(N,) bool: the velocity command (vx, vy, yaw rate) has a norm above ``min_command``."""
+    return s.command[:, :3].norm(dim=-1) > min_command
+
+
+def gait_phase(s: EnvState) -> torch.Tensor:
+    """(N, 2) phase in [0, 1) of the left and right foot's gait cycle, read from the clock columns
+    of the command (sin, cos of the left foot's phase); the right foot is half a cycle later."""
+    left = torch.atan2(s.command[:, 3], s.command[:, 4]) / (2 * torch.pi) % 1.0
+    return torch.stack([left, (left + 0.5) % 1.0], dim=-1)
+
+
+def gait_contact(
+    s: EnvState, stance_fraction: float = 0.55, threshold_n: float = 1.0, min_command: float = 0.1
+) -> torch.Tensor:
+    """Number of feet (0-2) whose ground contact matches the gait clock: a foot in the first
+    ``stance_fraction`` of its cycle should be down, in the rest up; under a standing command
+    both feet should be down (unitree_rl_gym's contact reward, standing case added)."""
+    stance = gait_phase(s) < stance_fraction
+    stance = stance | ~moving(s, min_command)[:, None]
+    contact = s.foot_contact_force_n > threshold_n
+    return (contact == stance).to(s.foot_contact_force_n.dtype).sum(-1)
+
+
+def feet_swing_height(
+    s: EnvState, target_m: float = 0.08, threshold_n: float = 1.0
+) -> torch.Tensor:
+    """Sum over the feet in the air of (sole height - ``target_m``)^2 [m^2] (flat ground)."""
+    airborne = (s.foot_contact_force_n <= threshold_n).to(s.foot_pos_w.dtype)
+    return ((s.foot_pos_w[..., 2] - target_m).square() * airborne).sum(-1)
+
+
+def energy_per_weight(
+    s: EnvState, min_speed_mps: float = 0.2, min_command: float = 0.1
+) -> torch.Tensor:
+    """Positive mechanical power over weight x commanded speed (a cost of transport), paid only
+    under moving commands: sum_j max(tau_j qdot_j, 0) / (m g max(|v_cmd|, min_speed)) [-]."""
+    power_w = (s.joint_torque_nm * s.joint_vel_rps).clamp_min(0.0).sum(-1)
+    speed = s.command[:, :2].norm(dim=-1).clamp_min(min_speed_mps)
+    return power_w / (s.weight_n * speed) * moving(s, min_command).to(power_w.dtype)
+
+
+def lin_vel_z_l2(s: EnvState) -> torch.Tensor:
+    """Squared vertical pelvis speed in the pelvis frame [m^2/s^2]."""
+    return s.base_lin_vel_b[:, 2].square()
 
 
 def track_lin_vel_xy_exp(s: EnvState, sharpness: float = 4.0) -> torch.Tensor:
@@ -37,7 +85,7 @@ def feet_air_time(s: EnvState, min_command: float = 0.1) -> torch.Tensor:
     """
     landed = s.foot_first_contact.to(s.foot_last_air_time_s.dtype)
     reward = (landed * s.foot_last_air_time_s).sum(-1)
-    return reward * (s.command.norm(dim=-1) > min_command).to(reward.dtype)
+    return reward * moving(s, min_command).to(reward.dtype)
 
 
 def cost_of_transport(s: EnvState, min_speed_mps: float = 0.1) -> torch.Tensor:
@@ -52,7 +100,7 @@ def cost_of_transport(s: EnvState, min_speed_mps: float = 0.1) -> torch.Tensor:
 
 def stand_still(s: EnvState, max_command: float = 0.1) -> torch.Tensor:
     """1[|c| < max_command] |q - q_default| [rad]: hold the default pose when asked to stand."""
-    standing = (s.command.norm(dim=-1) < max_command).to(s.joint_pos_rad.dtype)
+    standing = (~moving(s, max_command)).to(s.joint_pos_rad.dtype)
     return standing * (s.joint_pos_rad - s.default_joint_pos_rad).norm(dim=-1)
 
 
