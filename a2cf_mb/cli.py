@@ -19,6 +19,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.bench",
     "a2cf_mb.commands.train",
     "a2cf_mb.commands.eval",
+    "a2cf_mb.commands.eval_curve",
     "a2cf_mb.commands.compare",
     "a2cf_mb.commands.list_tasks",
     "a2cf_mb.commands.demo",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
+import json
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,8 +17,8 @@ from rsl_rl.env import VecEnv
 from rsl_rl.runners import OnPolicyRunner
 
 from optimal_control.files import atomic_write_json
-from rl.agents.models import ASSIST_ACTION_DIM
 from rl.agents.modes import MotionOnlyEnv, get_mode
+from rl.alone_eval import AloneEvalConfig, rollout_alone
 from rl.envs.vec_env import G1VecEnv
 from rl.runner import (
     CHECKPOINT_DIR,
@@ -66,9 +67,6 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     train_cfg = load_run_config(run_dir)
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
     env = G1VecEnv(env_cfg, resolve_task(train_cfg))
-    env.set_assist_enabled(False)
-    env.set_less_assist_reward(False)
-    motion_dim = env.num_actions - ASSIST_ACTION_DIM
     if cfg.use_onnx:
         onnx_policy = OnnxMotionPolicy(run_dir / POLICY_FILE)
 
@@ -78,55 +76,29 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             )
 
     else:
-        mode = get_mode(train_cfg.mode)
-        learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
-        with contextlib.redirect_stdout(io.StringIO()):
-            runner = OnPolicyRunner(learner_env, rsl_rl_config(train_cfg, mode), log_dir=None)
-        state = torch.load(run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
-        runner.alg.load(state, {"actor": True}, strict=True)
-        torch_policy = runner.alg.get_policy().motion_policy().eval()
+        torch_policy = checkpoint_motion_policy(
+            train_cfg, env, run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT
+        )
 
         def policy(obs: Any) -> torch.Tensor:
             return torch_policy(obs["policy"], obs["history"])
 
-    num_steps = cfg.num_steps or int(env.max_episode_length)
-    evaluator = env.task.evaluation.build(env) if env.task.evaluation is not None else None
-    returns = torch.zeros(cfg.num_envs)
-    lengths = torch.zeros(cfg.num_envs)
-    active = torch.ones(cfg.num_envs, dtype=torch.bool)
-    fell = torch.zeros(cfg.num_envs, dtype=torch.bool)
-    obs = env.get_observations()
-    zeros = torch.zeros(cfg.num_envs, ASSIST_ACTION_DIM)
-    qpos_env0 = [env.state[0, env.layout.qpos].copy()] if cfg.video else []
-    with torch.inference_mode(), contextlib.closing(env):
-        for _ in range(num_steps):
-            actions = policy(obs).reshape(cfg.num_envs, motion_dim)
-            obs, rewards, dones, extras = env.step(torch.cat([actions, zeros], dim=-1))
-            if cfg.video and active[0] and not bool(dones[0]):
-                qpos_env0.append(env.state[0, env.layout.qpos].copy())
-            if evaluator is not None:
-                evaluator.on_step(env, active, dones, extras)
-            returns += torch.where(active, rewards.float().cpu(), 0.0)
-            lengths += active.float()
-            done = dones.bool().cpu()
-            time_out = extras["time_outs"].bool().cpu()
-            fell |= active & done & ~time_out
-            active &= ~done
-            if not active.any():
-                break
+    qpos_env0: list[np.ndarray] = []
+
+    def record(env: G1VecEnv) -> None:
+        if cfg.video:
+            qpos_env0.append(env.state[0, env.layout.qpos].copy())
+
+    with contextlib.closing(env):
+        alone = rollout_alone(env, policy, cfg.num_steps, out_dir=run_dir, on_step=record)
+    num_steps = alone["num_steps"]
     result = {
         "run_dir": str(run_dir),
         "task": train_cfg.task,
         "mode": train_cfg.mode,
         "policy": "onnx" if cfg.use_onnx else "checkpoint",
-        "num_envs": cfg.num_envs,
-        "num_steps": num_steps,
-        "survival_fraction": float((~fell).float().mean()),
-        "mean_return": float(returns.mean()),
-        "mean_episode_length_steps": float(lengths.mean()),
+        **alone,
     }
-    if evaluator is not None:
-        result["task_metrics"] = evaluator.finish(run_dir)
     if cfg.sim2sim:
         from rl.sim2sim import Sim2SimConfig, run_sim2sim
 
@@ -145,6 +117,17 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             warnings.warn(f"eval: {result['video_note']}", stacklevel=2)
     atomic_write_json(run_dir / "eval.json", result)
     return result
+
+
+def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
+    """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``."""
+    mode = get_mode(train_cfg.mode)
+    learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
+    with contextlib.redirect_stdout(io.StringIO()):
+        runner = OnPolicyRunner(learner_env, rsl_rl_config(train_cfg, mode), log_dir=None)
+    state = torch.load(path, weights_only=False)
+    runner.alg.load(state, {"actor": True}, strict=True)
+    return runner.alg.get_policy().motion_policy().eval()
 
 
 def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
@@ -167,3 +150,57 @@ def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
         name=name,
     )
     return render_reference(ref, path)
+
+
+CHECKPOINT_EVALS_LOG = "evals_checkpoints.jsonl"
+"""Run-folder file of :func:`evaluate_checkpoints` (kept checkpoints evaluated after the fact)."""
+
+
+def evaluate_checkpoints(
+    run_dir: str | Path, cfg: AloneEvalConfig = AloneEvalConfig(), progress: bool = True
+) -> list[dict[str, Any]]:
+    """Evaluate the motion policy alone at every kept checkpoint ``model_<k>.pt`` of a run, as the
+    evaluations during training do (same envs, seed and scores), and write the rows to
+    ``evals_checkpoints.jsonl`` (checkpoints already in it are not evaluated again). For runs
+    trained without evaluations, or to evaluate more envs."""
+    from optimal_control.files import atomic_write_text
+    from rl.alone_eval import EVALS_DIR
+
+    run_dir = Path(run_dir)
+    train_cfg = load_run_config(run_dir)
+    task = resolve_task(train_cfg)
+    path = run_dir / CHECKPOINT_EVALS_LOG
+    rows = [json.loads(line) for line in path.read_text().splitlines()] if path.is_file() else []
+    rows = [r for r in rows if r.get("num_envs") == cfg.num_envs and r.get("seed") == cfg.seed]
+    done = {r["iteration"] for r in rows}
+    checkpoints = sorted(
+        (int(p.stem.split("_")[1]), p) for p in (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
+    )
+    if not checkpoints:
+        raise ValueError(f"{run_dir} has no kept checkpoint (checkpoints/model_<k>.pt) to evaluate")
+    steps_per_iteration = train_cfg.env.num_envs * train_cfg.num_steps_per_env
+    env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
+    todo = [(k, p) for k, p in checkpoints if k not in done]
+    for i, (k, ckpt) in enumerate(todo):
+        env = G1VecEnv(env_cfg, task)
+        try:
+            policy = checkpoint_motion_policy(train_cfg, env, ckpt)
+            result = rollout_alone(
+                env,
+                lambda obs, policy=policy: policy(obs["policy"], obs["history"]),
+                out_dir=run_dir / EVALS_DIR,
+            )
+        finally:
+            env.close()
+        rows.append(
+            {"iteration": k, "env_steps": k * steps_per_iteration, "seed": cfg.seed, **result}
+        )
+        rows.sort(key=lambda r: r["iteration"])
+        atomic_write_text(path, "".join(json.dumps(r) + "\n" for r in rows))
+        if progress:
+            print(
+                f"[{i + 1}/{len(todo)}] {run_dir.name} iteration {k}: survival "
+                f"{result['survival_fraction']:.0%}, target reached: {result['target_reached']}",
+                flush=True,
+            )
+    return rows

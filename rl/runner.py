@@ -46,6 +46,7 @@ from optimal_control.files import (
     git_revision,
 )
 from rl.agents.modes import ModeSpec, MotionOnlyEnv, get_mode
+from rl.alone_eval import AloneEvaluation
 from rl.curriculum import AssistCurriculum, CurriculumEvent, identical_axis_bounds
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task
@@ -219,6 +220,7 @@ class A2CFRunner(OnPolicyRunner):
         self.total_iterations = total_iterations
         self.keep_interval = keep_interval
         self._saved_completed = -1
+        self.alone_eval: AloneEvaluation | None = None  # evaluations of the policy alone
 
     @property
     def completed_iterations(self) -> int:
@@ -238,6 +240,9 @@ class A2CFRunner(OnPolicyRunner):
         if completed == self._saved_completed:
             return  # rsl-rl's closing save repeats the last iteration's
         self._saved_completed = completed
+        alone = self.alone_eval
+        if alone is not None and alone.due(completed, self.total_iterations):
+            self._evaluate_alone(completed)
         state = self.alg.save()
         state.update(
             {
@@ -253,6 +258,8 @@ class A2CFRunner(OnPolicyRunner):
         event = self.env.curriculum_event
         if event is not None:
             state["curriculum"] = event.curriculum.state_dict()
+        if alone is not None:
+            state["alone_eval"] = list(alone.rows)
         buffer = io.BytesIO()
         torch.save(state, buffer)
         data = buffer.getvalue()
@@ -262,7 +269,30 @@ class A2CFRunner(OnPolicyRunner):
         if completed % self.keep_interval == 0 or completed == self.total_iterations:
             atomic_write_bytes(folder / f"model_{completed}.pt", data)
         self._write_curriculum_log()
+        if alone is not None:
+            alone.write()
         self.logger.save_model(str(folder / LAST_CHECKPOINT), completed)
+
+    def _evaluate_alone(self, completed: int) -> None:
+        """Evaluate the motion policy alone now; TensorBoard ``Eval/*`` and one printed line."""
+        row = self.alone_eval(
+            self.alg.get_policy().motion_policy(), completed, int(self.logger.tot_timesteps)
+        )
+        if self.logger.writer is not None:
+            for key, value in AloneEvaluation.scalars(row).items():
+                self.logger.writer.add_scalar(key, value, completed)
+        metrics = row.get("task_metrics", {})
+        target = self.env.task.target
+        extra = (
+            f", {target.metric} {metrics[target.metric]:.3f}" if target.metric in metrics else ""
+        )
+        print(
+            f"[eval alone] iteration {completed}, {row['env_steps']:,} env steps: survival "
+            f"{row['survival_fraction']:.0%}{extra} (target {row['target']}: "
+            f"{'reached' if row['target_reached'] else 'not yet'})",
+            file=sys.stderr,
+            flush=True,
+        )
 
     def load_checkpoint(self, path: Path) -> None:
         """Restore weights, optimisers, iteration counter, env and curriculum state, logger,
@@ -280,6 +310,9 @@ class A2CFRunner(OnPolicyRunner):
         self.logger.load_state_dict(state["logger"])
         torch.set_rng_state(state["torch_rng_state"])
         self._write_curriculum_log()
+        if self.alone_eval is not None:
+            self.alone_eval.rows = list(state.get("alone_eval", []))
+            self.alone_eval.write()
 
     def _write_curriculum_log(self) -> None:
         """curriculum.jsonl = the checkpointed update history (lines of iterations after the
@@ -474,6 +507,8 @@ def build_training(
     runner = A2CFRunner(
         learner_env, rsl_cfg, run_dir, mode, cfg.iterations, cfg.save_interval, device=cfg.device
     )
+    if cfg.eval.interval > 0:
+        runner.alone_eval = AloneEvaluation(task, cfg.env, cfg.eval, run_dir)
     return env, runner, rsl_cfg
 
 
@@ -585,5 +620,14 @@ def summarise(runner: A2CFRunner, cfg: TrainConfig) -> dict[str, Any]:
         summary["mean_total_steps_per_s"] = float(np.mean([r["total_steps_per_s"] for r in rows]))
         summary["first_mean_step_reward"] = rows[0]["mean_step_reward"]
         summary["last_mean_step_reward"] = rows[-1]["mean_step_reward"]
+    alone = runner.alone_eval
+    if alone is not None and alone.rows:
+        first = alone.first_reached()
+        summary["alone_target"] = runner.env.task.target.describe()
+        summary["alone_target_reached_at"] = (
+            {"iteration": first["iteration"], "env_steps": first["env_steps"]} if first else None
+        )
+        summary["alone_last"] = alone.rows[-1]
+        summary["alone_evaluations"] = alone.rows
     summary["iterations"] = rows
     return summary

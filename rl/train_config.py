@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from rl.agents.modes import get_mode
+from rl.alone_eval import AloneEvalConfig
 from rl.assist import DEFAULT_RANDOM_MASK_PROB
 from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
@@ -72,6 +73,9 @@ class TrainConfig:
     ppo: PPOConfig = field(default_factory=PPOConfig)  # PPO hyper-parameters
     model: ModelConfig = field(default_factory=ModelConfig)  # network sizes and VAE weights
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)  # Algorithm 1
+    eval: AloneEvalConfig = field(
+        default_factory=AloneEvalConfig
+    )  # evaluations of the motion policy alone during training
     warmstart: str = ""  # distil the assist head from a coach first: "posture" (built-in, as needed) or an oracle artifact folder; empty: none [-]
     warmstart_motion: bool = False  # clone the motion head from the task's time-indexed joint reference first (dance) [-]
     distill: WarmStartConfig = field(

@@ -33,6 +33,10 @@ class Component:  # noqa: B024 - a base of optional hooks; subclasses add the ab
         ``qvel`` (M, 35)), e.g. place a robot on its terrain tile or on a reference frame. Called
         before :meth:`reset`, after the task's initial-state noise."""
 
+    def for_evaluation(self) -> None:  # noqa: B027 - optional hook
+        """Switch to the finished skill's setting for an evaluation of the policy alone (e.g. a
+        command curriculum's full ranges)."""
+
     def log(self) -> dict[str, float]:
         """Scalars to log this step (e.g. ``Curriculum/terrain_level``); averaged per iteration."""
         return {}

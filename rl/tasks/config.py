@@ -98,6 +98,31 @@ class ObservationsConfig:
 
 
 @dataclass(frozen=True)
+class SkillTarget:
+    """What the motion policy *alone* (assistance off, fresh envs, one episode each) must reach
+    for the skill to count as learned: a survival share and, optionally, one task metric of the
+    task's evaluator at or below a bound."""
+
+    min_survival: float = 0.9  # share of evaluation episodes that must not fail [-]
+    metric: str = ""  # task evaluator metric bounded above (e.g. skill_error_rad); empty: none
+    max_metric: float = 0.0  # the metric's upper bound, in its unit
+
+    def reached(self, result: dict[str, Any]) -> bool:
+        """Whether an evaluation result (``survival_fraction``, ``task_metrics``) meets it."""
+        if result["survival_fraction"] < self.min_survival:
+            return False
+        if not self.metric:
+            return True
+        value = result.get("task_metrics", {}).get(self.metric)
+        return value is not None and value <= self.max_metric
+
+    def describe(self) -> str:
+        """One line, e.g. ``survival >= 0.9 and lin_vel_error_mps <= 0.25``."""
+        text = f"survival >= {self.min_survival:g}"
+        return text + (f" and {self.metric} <= {self.max_metric:g}" if self.metric else "")
+
+
+@dataclass(frozen=True)
 class TaskConfig:
     """One skill for the G1 env (see the module docstring)."""
 
@@ -123,6 +148,7 @@ class TaskConfig:
     evaluation: Any = (
         None  # task-specific eval config (build(env) -> evaluator); None: generic eval
     )
+    target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
 
     def __post_init__(self) -> None:
         check_unique("reward", self.rewards)

@@ -26,7 +26,7 @@ from rl import rewards, terminations
 from rl.curriculum import paper_bound_rows
 from rl.tasks import dance_terms as dt
 from rl.tasks.components import SinglePhaseConfig
-from rl.tasks.config import InitialStateConfig, PushConfig, TaskConfig
+from rl.tasks.config import InitialStateConfig, PushConfig, SkillTarget, TaskConfig
 from rl.tasks.stand import STAND_OBSERVATIONS
 from rl.tasks.terms import RewardTerm, TerminationTerm
 
@@ -162,6 +162,9 @@ _DANCE = TaskConfig(
         RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.01),
         RewardTerm("joint_acc", rewards.joint_acc_l2, weight=-2.5e-7),
         RewardTerm("torques", rewards.torques_l2, weight=-1e-5),
+        # times dt 0.02 s: -2 per fall (the paper's table pays 33/s for a fall in the first step,
+        # more than holding a pose earns; tests/test_reward_recipes.py)
+        RewardTerm("termination", rewards.termination, weight=-100.0),
     ),
     terminations=(
         TerminationTerm("too_low", terminations.base_too_low, params={"min_height_m": 0.4}),
@@ -182,6 +185,7 @@ _DANCE = TaskConfig(
     skill=dt.TrackingSkillConfig(threshold_rad=0.16),
     less_assist_weight=2.0,
     evaluation=DanceEvaluationConfig(),
+    target=SkillTarget(min_survival=0.0, metric="skill_error_rad", max_metric=0.16),
 )
 
 DANCE = dance_task()
@@ -197,7 +201,7 @@ DANCE_PAPER = dataclasses.replace(
     rewards=tuple(
         _PAPER_JOINT if t.name == "joint_position" else t
         for t in DANCE.rewards
-        if t.name != "joint_rms"
+        if t.name not in ("joint_rms", "termination")
     ),
 )
 """The dance with the paper's reward table (the reference the default recipe is compared with)."""

@@ -29,6 +29,7 @@ from rl.tasks.config import (
     PushConfig,
     RandomizationConfig,
     SceneConfig,
+    SkillTarget,
     TaskConfig,
 )
 from rl.tasks.stand import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, STAND_OBSERVATIONS
@@ -148,6 +149,10 @@ class VelocityCommand(Command):
         self.clock_s += dt_s
         self._write_clock()
         return self.command
+
+    def for_evaluation(self) -> None:
+        """Evaluations draw from the full command ranges."""
+        self.scale = torch.tensor(1.0)
 
     def log(self) -> dict[str, float]:
         """``Curriculum/command_scale`` (when the curriculum is on)."""
@@ -444,6 +449,7 @@ WALK_FLAT = TaskConfig(
     skill=SurvivalSkillConfig(target_survival=0.9),
     less_assist_weight=2.0,
     evaluation=WalkEvaluationConfig(),
+    target=SkillTarget(min_survival=0.9, metric="lin_vel_error_mps", max_metric=0.25),
 )
 """Walking on a plane: the target at CPU scale and the first stage of ``walk``."""
 

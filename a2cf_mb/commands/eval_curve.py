@@ -1,0 +1,39 @@
+"""``a2cf-mb eval-curve RUN_DIR``: the motion policy alone at every kept checkpoint of a run."""
+
+from __future__ import annotations
+
+import argparse
+
+from a2cf_mb.config_cli import add_config_arguments, config_from_args
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``eval-curve`` subcommand."""
+    from rl.alone_eval import AloneEvalConfig
+
+    parser = subparsers.add_parser(
+        "eval-curve",
+        help="evaluate the motion policy alone (assistance off) at every kept checkpoint of a run "
+        "(evals_checkpoints.jsonl)",
+    )
+    parser.add_argument("run_dir", help="run folder written by `a2cf-mb train`")
+    add_config_arguments(parser, AloneEvalConfig)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Call :func:`rl.evaluate.evaluate_checkpoints` and print where the target was reached."""
+    from rl.alone_eval import AloneEvalConfig
+    from rl.evaluate import CHECKPOINT_EVALS_LOG, evaluate_checkpoints
+
+    rows = evaluate_checkpoints(args.run_dir, config_from_args(AloneEvalConfig, args))
+    first = next((r for r in rows if r["target_reached"]), None)
+    where = (
+        f"reached at iteration {first['iteration']} ({first['env_steps']:,} env steps)"
+        if first
+        else "not reached"
+    )
+    print(
+        f"{len(rows)} checkpoints in {args.run_dir}/{CHECKPOINT_EVALS_LOG}; target {rows[-1]['target']}: {where}"
+    )
+    return 0

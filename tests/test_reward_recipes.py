@@ -1,0 +1,67 @@
+"""Reward recipes: falling never pays (every registered task but the paper's tables).
+
+"Never pays": an episode that fails in its first step earns a negative return, and less per second
+than an episode whose policy holds the default pose until it falls. The paper's tables have no
+survival term, so their fall step earns a positive reward (walk: the tracking and air-time terms
+of a robot that topples in the commanded direction)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from rl.registry import TASKS, make_env
+
+PAPER_TABLES_THAT_PAY_FOR_FALLING = {"walk-paper", "dance-paper"}
+"""The paper's tables have no survival term; kept as variants, measured to pay for falls."""
+
+HOLD_STEPS = 300  # 6 s of holding the default pose at most
+
+
+def _fall_at_once_per_s(task: str) -> float:
+    """Reward per second of an episode that fails in its first step: the robot lying on its side."""
+    env = make_env(task, 2, num_threads=1, seed=0)
+    env.set_assist_enabled(False)
+    lay = env.layout
+    q0 = lay.qpos.start
+    half = math.pi / 4
+    env._state_t[:, q0 + 2] = 0.15  # pelvis 15 cm above the floor
+    env._state_t[:, q0 + 3 : q0 + 7] = torch.tensor(
+        [math.cos(half), math.sin(half), 0.0, 0.0]
+    ).double()
+    env._state_t[:, lay.qvel] = 0.0
+    _, reward, dones, extras = env.step(torch.zeros(2, env.num_actions))
+    assert bool(dones.all()) and not bool(extras["time_outs"].any()), f"{task}: did not fail"
+    return float(reward.mean()) / env.step_dt_s
+
+
+def _hold_default_pose_per_s(task: str) -> float:
+    """Reward per second of an episode whose policy holds the default pose until it falls."""
+    env = make_env(task, 2, num_threads=1, seed=0)
+    env.set_assist_enabled(False)
+    total, steps = torch.zeros(2), torch.zeros(2)
+    alive = torch.ones(2, dtype=torch.bool)
+    for _ in range(HOLD_STEPS):
+        _, reward, dones, _ = env.step(torch.zeros(2, env.num_actions))
+        total += torch.where(alive, reward, 0.0)
+        steps += alive.float()
+        alive &= ~dones.bool()
+        if not alive.any():
+            break
+    return float((total / steps).mean()) / env.step_dt_s
+
+
+@pytest.mark.parametrize("task", sorted(set(TASKS) - PAPER_TABLES_THAT_PAY_FOR_FALLING))
+def test_falling_at_once_earns_less_per_second_than_holding_the_pose(task: str) -> None:
+    fall, hold = _fall_at_once_per_s(task), _hold_default_pose_per_s(task)
+    assert fall < 0.0, f"{task}: an episode that falls at once earns {fall:.2f}/s > 0"
+    assert fall < hold, f"{task}: falling at once earns {fall:.2f}/s, holding the pose {hold:.2f}/s"
+
+
+@pytest.mark.parametrize("task", sorted(PAPER_TABLES_THAT_PAY_FOR_FALLING))
+def test_the_paper_tables_pay_for_falling(task: str) -> None:
+    """Why the paper's tables are not the defaults: with them, a fall at once earns a positive
+    return."""
+    assert _fall_at_once_per_s(task) > 0.0
