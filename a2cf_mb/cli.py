@@ -76,9 +76,14 @@ USER_ERRORS: tuple[type[BaseException], ...] = (
 """Exceptions a user can cause with an input: printed as one line, exit code 2. Anything else is
 a bug and keeps its traceback (exit code 1)."""
 
-USER_ERROR_NAMES: tuple[str, ...] = ("InfeasibleBackflipError", "BackflipAuditError")
-"""Outcomes of a valid run that the user resolves by changing the problem (matched by class name
-so this module does not import the solvers)."""
+USER_ERROR_NAMES: tuple[str, ...] = (
+    "InfeasibleBackflipError",
+    "BackflipAuditError",
+    "RunFolderBusyError",
+)
+"""Outcomes of a valid run that the user resolves by changing the problem, or by waiting for the
+process that writes the same run folder (matched by class name so this module does not import the
+solvers or the trainer)."""
 
 
 def is_user_error(exc: BaseException) -> bool:

@@ -8,7 +8,9 @@ a docstring right below the field,
 searched through the class and its bases, so inherited fields keep theirs. A test checks that
 every flag of every command has help. Float flags refuse NaN and infinity by name. The parsed
 namespace records which flags were given (:func:`given_flags`), e.g. to say what a ``--resume``
-will not apply.
+will not apply. A few nested fields also take the short flag other RL tools use
+(:data:`SHORT_FLAGS`: ``--num-envs`` for ``--env-num-envs``), as a second spelling of the same
+option, not a second field.
 
 Why not tyro (which mjlab uses): it would give the same flags, but ``--resume`` needs to know which
 flags the user typed, the bool ``--x/--no-x`` style and the one-line error messages are ours, and
@@ -33,6 +35,11 @@ T = TypeVar("T")
 
 GIVEN = "_given_flags"
 """Namespace attribute: the set of ``dest`` names the user gave on the command line."""
+
+SHORT_FLAGS: dict[str, str] = {"env.num_envs": "--num-envs", "env.seed": "--seed"}
+"""dest -> the flag Isaac Lab and mjlab users type for it, accepted beside the long flag (both set
+the same dest; ``--help`` lists both). A top-level field already has the short form
+(``--device``)."""
 
 
 @cache
@@ -137,9 +144,10 @@ def add_config_arguments(
     """Add one flag per field of dataclass ``cls``, recursing into nested dataclasses.
 
     ``prefix`` (e.g. ``"ppo_"`` or ``"task."``) starts every dest; nested fields extend it with
-    ``"<field>."``. ``defaults`` (an instance of ``cls``) supplies the shown defaults instead of
-    the class's (e.g. a task's own values). Fields whose type argparse cannot express (callables,
-    term lists, dicts) are skipped; they are changed in code or by dedicated flags.
+    ``"<field>."``; a dest in :data:`SHORT_FLAGS` also takes its short flag. ``defaults`` (an
+    instance of ``cls``) supplies the shown defaults instead of the class's (e.g. a task's own
+    values). Fields whose type argparse cannot express (callables, term lists, dicts) are skipped;
+    they are changed in code or by dedicated flags.
     """
     hints = typing.get_type_hints(cls)
     for field in dataclasses.fields(cls):
@@ -159,21 +167,22 @@ def add_config_arguments(
                 continue
             kind, origin, args = plain[0], typing.get_origin(plain[0]), typing.get_args(plain[0])
         text = field_help(cls, field)
+        flags = [_flag(dest), *([SHORT_FLAGS[dest]] if dest in SHORT_FLAGS else [])]
         metavar = field.name.upper()
         # argparse %-formats help strings: escape a literal percent sign.
         help_text = f"{text} (default: {default})".replace("%", "%%")
         if kind is bool:
             parser.add_argument(
-                _flag(dest), dest=dest, action=_RecordBool, default=default, help=help_text
+                *flags, dest=dest, action=_RecordBool, default=default, help=help_text
             )
         elif origin in (tuple, list) and args and args[0] in (int, float, str):
             parser.add_argument(
-                _flag(dest), dest=dest, action=_Record, nargs="+", default=default, help=help_text, metavar=metavar,
+                *flags, dest=dest, action=_Record, nargs="+", default=default, help=help_text, metavar=metavar,
                 type=finite_float if args[0] is float else args[0],
             )  # fmt: skip
         elif kind in (int, float, str):
             parser.add_argument(
-                _flag(dest), dest=dest, action=_Record, default=default, help=help_text,
+                *flags, dest=dest, action=_Record, default=default, help=help_text,
                 type=finite_float if kind is float else kind, metavar=metavar,
             )  # fmt: skip
 

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from optimal_control.files import atomic_savefig, atomic_write_text, check_writable_dir
+from rl.run_folder import METRICS_FILE, WARMSTART_FILE
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,16 @@ class DemoConfig:
     overwrite: bool = False  # replace an existing output folder
 
     def __post_init__(self) -> None:
+        """Check sizes before any work (the walk's bound is the oracle's own)."""
+        from optimal_control.validation import require_within
+        from optimal_control.walk import MAX_WALK_DURATION_S
+
         if min(self.num_envs, self.iterations, self.eval_envs) < 1:
             raise ValueError("demo num_envs, iterations and eval_envs must be >= 1")
+        require_within(
+            self, "walk_duration_s", 0.0, MAX_WALK_DURATION_S, "s", low_open=True,
+            why="the oracle's walk repeats one step cycle (see a2cf-mb solve-walk --duration)",
+        )  # fmt: skip
 
 
 def _eta_table(eta0: list[list[float]], phases: list[str]) -> str:
@@ -57,7 +66,7 @@ def _curves(runs: dict[str, Path], out: Path) -> Path:
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
     for name, run in runs.items():
-        rows = json.loads((run / "metrics.json").read_text())["iterations"]
+        rows = json.loads((run / METRICS_FILE).read_text())["iterations"]
         steps, total = [], 0
         for r in rows:
             total += r["env_steps"]
@@ -136,7 +145,7 @@ def run_demo(cfg: DemoConfig = DemoConfig()) -> Path:
 
 
 def _report(cfg, artifact, oracle_dir, warmstart, runs, evals, curves, times) -> str:
-    warm = json.loads((runs["a2cf_warmstart"] / "warmstart.json").read_text())
+    warm = json.loads((runs["a2cf_warmstart"] / WARMSTART_FILE).read_text())
     fit = warm["held_out_fit"]
     rows = [
         f"| {name} | {e['survival_fraction']:.2f} | {e['mean_return']:.2f} | "

@@ -18,8 +18,10 @@ no file of an earlier artifact (another task's video or solution) stays beside a
 over an existing artifact needs ``overwrite=True`` (``--overwrite``).
 
 Readers that must not import solver code (``rl``) read ``oracle.json`` only: ``eta0`` is a list of
-per-phase rows ``[fx, fy, fz, mx, my, mz]`` (world-frame force [N] and torque [N m] at the pelvis
-CoM, i.e. MuJoCo ``xfrc_applied`` of the pelvis) in the order of ``phase_names``; the warm-start
+per-phase rows ``[fx, fy, fz, mx, my, mz]`` (bounds on force [N] and torque [N m] at the pelvis CoM
+per axis of the reference's heading frame, the assist action's frame, see
+:mod:`optimal_control.bounds`) in the order of ``phase_names``; the wrench profiles (``wrench_w``)
+are world-frame, MuJoCo ``xfrc_applied`` of the pelvis; the warm-start
 dataset is ``arrays.npz``: ``ref_q``, ``ref_v``, ``ref_contacts``, ``ref_phase`` and
 ``wrench_w`` (the novice profile). The artifact is generic in the number and names of phases and
 accepts task-specific arrays (``extra_arrays``) and JSON fields (``extra_summary``).
@@ -42,6 +44,7 @@ from optimal_control.bounds import (
     BoundRule,
     envelope_per_phase,
     help_causes_per_phase,
+    wrench_in_heading_frame,
 )
 from optimal_control.files import (
     atomic_folder,
@@ -188,6 +191,8 @@ class OracleArtifact:
             "axes": list(AXIS_NAMES),
             "wrench_frame": "world-frame force [N] and torque [N m] at the pelvis body CoM "
             "(MuJoCo xfrc_applied of the pelvis)",
+            "eta0_frame": "per axis of the reference's heading frame (x forward along the pelvis "
+            "yaw, z up): the assist action's frame",
             "eta0": self.eta0.tolist(),
             "eta0_per_phase": self.eta0_dict(),
             "rule": self.rule.to_dict(),
@@ -415,7 +420,8 @@ def _shade_phases(ax, time_s: np.ndarray, phase: np.ndarray, colors) -> None:
 
 
 def write_plots(art: OracleArtifact, folder: Path) -> list[Path]:
-    """Wrench components over time (phases shaded) per alpha, and eta0 per phase; returns paths."""
+    """Wrench components over time (phases shaded) per alpha, on the reference's heading axes
+    like eta0, and eta0 per phase; returns paths."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -427,11 +433,11 @@ def write_plots(art: OracleArtifact, folder: Path) -> list[Path]:
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     paths = []
     for alpha in sorted(art.profiles, reverse=True):
-        prof = art.profiles[alpha]
+        wrench_h = wrench_in_heading_frame(art.profiles[alpha].wrench_w, ref.q[:, 3:7])
         fig, axes = plt.subplots(6, 1, figsize=(10, 11), sharex=True)
         for i, ax in enumerate(axes):
             _shade_phases(ax, ref.time_s, ref.phase, colors)
-            ax.plot(ref.time_s, prof.wrench_w[:, i], color="k", lw=1.0)
+            ax.plot(ref.time_s, wrench_h[:, i], color="k", lw=1.0)
             p = ref.phase
             ax.plot(ref.time_s, art.eta0[p, i], color="tab:red", lw=0.8, ls="--")
             ax.plot(ref.time_s, -art.eta0[p, i], color="tab:red", lw=0.8, ls="--")
@@ -489,7 +495,8 @@ def build_artifact(
     extra_summary: dict | None = None,
     extra_arrays: dict[str, np.ndarray] | None = None,
 ) -> OracleArtifact:
-    """Derive eta0 from the novice profile by ``rule`` and assemble a validated artifact."""
+    """Derive eta0 from the novice profile by ``rule`` (on the reference's heading axes, the
+    assist action's) and assemble a validated artifact."""
     from optimal_control.bounds import eta0_per_phase
 
     art = OracleArtifact(
@@ -508,7 +515,8 @@ def build_artifact(
         extra_arrays=extra_arrays or {},
     )
     novice = art.novice_profile
+    wrench_h = wrench_in_heading_frame(novice.wrench_w, reference.q[:, 3:7])
     art.eta0 = eta0_per_phase(
-        novice.wrench_w, reference.phase, len(reference.phase_names), rule, valid=novice.solved
+        wrench_h, reference.phase, len(reference.phase_names), rule, valid=novice.solved
     )
     return art.validate()

@@ -18,6 +18,14 @@ easy 95 % of the time still needs its hard 5 % covered). ``frames = "all"`` uses
 The floor keeps a little room on axes the envelope says are never needed (a learner deviates from
 the reference), the margin covers the learner's deviation on axes that are needed. A phase with no
 frame gets the floor. The rule's name and parameters are stored in every artifact.
+
+**Axes.** The QP's wrench ``w`` is world-frame; the env bounds the assist wrench per axis of each
+robot's *heading frame* (x forward along the pelvis yaw, z up: :class:`rl.envs.assist_action.
+AssistAction`). :func:`wrench_in_heading_frame` turns ``w`` into the reference's heading frame
+before the rule reads it, so eta0 bounds the axes the learner's head acts on. On world axes, a clip
+that faces another way or turns gets its fx and fy (mx and my) bounds mixed up: the built-in dance
+turned to face +y would get fy 17.0 N and mx 27.7 N m where its heading axes need 38.5 N and
+50.7 N m. For references facing +x (the built-in walk, dance and backflip) both agree (within 1 %).
 """
 
 from __future__ import annotations
@@ -28,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 AXIS_NAMES = ("fx", "fy", "fz", "mx", "my", "mz")
-"""Wrench axes: world-frame force [N] then torque [N m] at the pelvis CoM."""
+"""Wrench axes: force [N] then torque [N m] at the pelvis CoM (of a bound: heading-frame axes)."""
 
 PAPER_ETA0: dict[str, dict[str, list[list[float]]]] = {
     "walk": {"all": [[40.0, 40.0, 10.0, 40.0, 40.0, 40.0]]},
@@ -68,6 +76,20 @@ class BoundRule:
     def from_dict(cls, values: dict) -> BoundRule:
         """Inverse of :meth:`to_dict`."""
         return cls(**values)
+
+
+def wrench_in_heading_frame(wrench_w: np.ndarray, base_quat_xyzw: np.ndarray) -> np.ndarray:
+    """World-frame wrenches (T, 6) in the heading frames of pelvis orientations (T, 4) (Pinocchio
+    order x y z w): the horizontal force and torque components turned by minus the pelvis yaw."""
+    x, y, z, w = np.asarray(base_quat_xyzw, dtype=float).T
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    c, s = np.cos(yaw), np.sin(yaw)
+    wrench_w = np.asarray(wrench_w, dtype=float)
+    out = wrench_w.copy()
+    for k in (0, 3):  # force, then torque
+        out[:, k] = c * wrench_w[:, k] + s * wrench_w[:, k + 1]
+        out[:, k + 1] = -s * wrench_w[:, k] + c * wrench_w[:, k + 1]
+    return out
 
 
 def eta0_per_phase(

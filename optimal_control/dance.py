@@ -27,8 +27,8 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import ClipConfig, reference_from_configurations
 from optimal_control.reference import Reference
-from optimal_control.validation import require_finite_fields
-from optimal_control.walk import _placo_robot
+from optimal_control.validation import require_finite_fields, require_within
+from optimal_control.walk import IK_DT_RANGE_S, _placo_robot
 from robots import g1
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
 
@@ -50,8 +50,13 @@ class DanceConfig:
     smoothing_window_s: float = 0.1  # Savitzky-Golay window for v and a [s]
 
     def __post_init__(self) -> None:
-        """Reject NaN / inf values, naming the field and its flag."""
+        """Reject NaN / inf values and an IK step out of bounds, naming the field and its flag."""
         require_finite_fields(self)
+        require_within(
+            self, "ik_dt_s", *IK_DT_RANGE_S, "s",
+            why="the IK runs the dance's length / ik_dt_s steps and follows the keyframes between "
+            "them",
+        )  # fmt: skip
 
 
 def _smoothstep(s: np.ndarray) -> np.ndarray:

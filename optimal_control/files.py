@@ -205,14 +205,19 @@ def _pid_of(name: str, tag: str) -> int | None:
         return None
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs on this host (a zombie, killed but not yet reaped, does not)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
-    return True
+        return True  # it exists, owned by another user
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True  # no /proc (macOS) or it just ended: os.kill said it exists
+    return stat[stat.rindex(")") + 2 :].split()[0] != "Z"
 
 
 def _leftovers(target: Path, tag: str) -> list[tuple[Path, int]]:
@@ -223,7 +228,7 @@ def _leftovers(target: Path, tag: str) -> list[tuple[Path, int]]:
     for entry in target.parent.iterdir():
         if entry.name.startswith(prefix):
             pid = _pid_of(entry.name, tag)
-            if pid is not None and not _alive(pid):
+            if pid is not None and not process_alive(pid):
                 out.append((entry, pid))
     return out
 

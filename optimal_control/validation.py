@@ -2,7 +2,9 @@
 
 Oracle configs call :func:`require_finite_fields` from ``__post_init__``: a NaN or infinite float
 (``--vx nan``, ``--duration inf``) is named with its field and flag instead of surfacing later as
-a NaN wrench or an endless loop.
+a NaN wrench or an endless loop. Sizes (a duration, a knot count, a step that sets how many
+samples there are) are bounded with :func:`require_within`: ``--duration 1e9`` is refused with the
+limit and its reason, not answered by an overflow inside placo or an hour of work.
 """
 
 from __future__ import annotations
@@ -29,3 +31,20 @@ def require_finite_fields(cfg: Any) -> None:
                     f"{type(cfg).__name__}.{field.name} ({flag_name(field.name)}) is {value}; "
                     "give a finite number."
                 )
+
+
+def require_within(
+    cfg: Any, name: str, low: float, high: float, unit: str, why: str, low_open: bool = False
+) -> None:
+    """Raise :class:`ValueError` unless field ``name`` of ``cfg`` lies in ``[low, high]`` (``(low,
+    high]`` with ``low_open``). For sizes (a duration, a count of knots, a step that sets how many
+    samples there are): the message names the config, the field, its flag, the limit and ``why``
+    the limit is there, before any work (and not as an overflow deep inside a solver)."""
+    value = getattr(cfg, name)
+    if (low < value <= high) if low_open else (low <= value <= high):
+        return
+    bracket = "(" if low_open else "["
+    raise ValueError(
+        f"{type(cfg).__name__}.{name} ({flag_name(name)}) is {value:g} {unit}; give a value in "
+        f"{bracket}{low:g}, {high:g}] {unit}: {why}."
+    )

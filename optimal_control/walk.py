@@ -25,12 +25,20 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import differentiate
 from optimal_control.reference import Reference
-from optimal_control.validation import require_finite_fields
+from optimal_control.validation import require_finite_fields, require_within
 from robots import g1
 from robots.assets import g1_urdf_path
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
 
 WALK_PHASES = ("double_support", "single_support")
+
+MAX_WALK_DURATION_S = 120.0
+"""Longest walk reference: a walk repeats one step cycle, so eta0 (a percentile per phase) learns
+nothing from a longer one, while placo's plan, the IK and the per-frame QPs grow with it [s]."""
+IK_DT_RANGE_S = (0.001, 0.02)
+"""Allowed whole-body IK step of the placo references (walk, dance): the IK runs duration / step
+times, so a finer step costs time without changing the 50 Hz reference; a coarser one than a
+50 Hz frame leaves placo's trajectory between IK steps [s]."""
 
 
 @dataclass(frozen=True)
@@ -57,8 +65,17 @@ class WalkConfig:
     smoothing_window_s: float = 0.1  # Savitzky-Golay window for v and a [s]
 
     def __post_init__(self) -> None:
-        """Reject NaN / inf values, naming the field and its flag."""
+        """Reject NaN / inf values and sizes out of bounds, naming the field and its flag."""
         require_finite_fields(self)
+        require_within(
+            self, "duration", 0.0, MAX_WALK_DURATION_S, "s", low_open=True,
+            why="the walk repeats one step cycle, so a longer reference adds nothing to eta0 while "
+            "planning, IK and the per-frame QPs grow with it",
+        )  # fmt: skip
+        require_within(
+            self, "ik_dt_s", *IK_DT_RANGE_S, "s",
+            why="the IK runs duration / ik_dt_s steps and follows placo's trajectory between them",
+        )  # fmt: skip
 
 
 def placo_urdf_text(urdf_path: Path | None = None) -> str:
@@ -140,8 +157,6 @@ def plan_walk(cfg: WalkConfig = WalkConfig(), robot: G1Pinocchio | None = None) 
 
     import placo
 
-    if cfg.duration <= 0:
-        raise ValueError(f"WalkConfig.duration must be > 0 s, got {cfg.duration}.")
     robot = robot or build_pinocchio_model()
     probot = _placo_robot()
     ss = cfg.single_support_s

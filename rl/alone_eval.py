@@ -25,12 +25,8 @@ from optimal_control.files import atomic_write_text
 from rl.agents.models import ASSIST_ACTION_DIM
 from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
+from rl.run_folder import EVALS_DIR, EVALS_LOG
 from rl.tasks.config import TaskConfig
-
-EVALS_LOG = "evals.jsonl"
-"""Run-folder file of the evaluations during training, one JSON line each."""
-EVALS_DIR = "evals"
-"""Run-folder folder where the task evaluator's latest figures go."""
 
 MotionPolicyFn = Callable[[TensorDict], torch.Tensor]
 """``policy(obs) -> motion actions (N, 29)`` from the env's observation groups."""

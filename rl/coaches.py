@@ -1,7 +1,7 @@
 """Model-based coaches: state-dependent pelvis wrenches the force agent is distilled from.
 
-A coach maps the batch :class:`EnvState` to a world-frame pelvis wrench (N, 6) [N, Nm], bounded by
-the env's current eta. It assists *as needed*: inside a tolerance band around the reference the
+A coach maps the batch :class:`EnvState` to a pelvis wrench (N, 6) [N, Nm] in the assist action's
+heading frame (:class:`rl.envs.assist_action.AssistAction`), bounded by the env's current eta. It assists *as needed*: inside a tolerance band around the reference the
 learner is on its own (zero wrench), beyond it the help grows linearly with the excess (measured on
 stand: a coach that does all the balancing left a policy that survived 5 % of unassisted episodes,
 against 52 % for the baseline; see DESIGN.md). Reference-tracking coaches for walk, dance and

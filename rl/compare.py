@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
+from rl.run_folder import CONFIG_FILE, EVAL_FILE, EVENTS_GLOB, METRICS_FILE
 from robots.mujoco_model import MujocoModelConfig
 
 TRACKING_TERMS = ("track_lin_vel_xy", "track_ang_vel_z")
@@ -49,7 +50,7 @@ def _scalars(run_dir: Path) -> dict[str, np.ndarray]:
     """TensorBoard scalars of a run: tag -> (steps, values) stacked as a (K, 2) array."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-    events = sorted(run_dir.glob("events.out.tfevents*"))
+    events = sorted(run_dir.glob(EVENTS_GLOB))
     out: dict[str, np.ndarray] = {}
     for path in events:
         acc = EventAccumulator(str(path), size_guidance={"scalars": 0})
@@ -66,7 +67,7 @@ def _scalars(run_dir: Path) -> dict[str, np.ndarray]:
 def load_run(run_dir: str | Path) -> dict[str, Any]:
     """The curves of one run folder, per iteration (see the module docstring)."""
     run_dir = Path(run_dir)
-    config_path, metrics_path = run_dir / "config.json", run_dir / "metrics.json"
+    config_path, metrics_path = run_dir / CONFIG_FILE, run_dir / METRICS_FILE
     for path in (config_path, metrics_path):
         if not path.is_file():
             raise FileNotFoundError(
@@ -97,7 +98,7 @@ def load_run(run_dir: str | Path) -> dict[str, Any]:
     }
     eta_norm = np.array([r["eta_norm"][0] if r.get("eta_norm") else 0.0 for r in rows], dtype=float)
     assist = np.array([bool(r.get("assist_enabled")) for r in rows])
-    eval_path = run_dir / "eval.json"
+    eval_path = run_dir / EVAL_FILE
     return {
         "run_dir": str(run_dir),
         "label": f"{config['train']['mode']} ({run_dir.name})",

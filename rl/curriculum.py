@@ -45,7 +45,8 @@ import torch.distributed as dist
 from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0
 
 WRENCH_AXES: tuple[str, ...] = AXIS_NAMES
-"""Names of the six wrench components: world-frame force [N] then moment [Nm] at the pelvis."""
+"""Names of the six wrench components: force [N] then moment [Nm] at the pelvis, on the axes of
+the robot's heading frame (:class:`rl.envs.assist_action.AssistAction`)."""
 
 
 def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:

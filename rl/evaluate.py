@@ -20,6 +20,7 @@ from optimal_control.files import atomic_write_json
 from rl.agents.modes import MotionOnlyEnv, get_mode
 from rl.alone_eval import AloneEvalConfig, rollout_alone
 from rl.envs.vec_env import G1VecEnv
+from rl.run_folder import CHECKPOINT_EVALS_LOG, EVAL_FILE, EVALS_DIR
 from rl.runner import (
     CHECKPOINT_DIR,
     LAST_CHECKPOINT,
@@ -115,7 +116,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         except RenderUnavailableError as err:  # no GL / no encoder: the metrics still count
             result["video_note"] = f"no video: {err}"
             warnings.warn(f"eval: {result['video_note']}", stacklevel=2)
-    atomic_write_json(run_dir / "eval.json", result)
+    atomic_write_json(run_dir / EVAL_FILE, result)
     return result
 
 
@@ -152,10 +153,6 @@ def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
     return render_reference(ref, path)
 
 
-CHECKPOINT_EVALS_LOG = "evals_checkpoints.jsonl"
-"""Run-folder file of :func:`evaluate_checkpoints` (kept checkpoints evaluated after the fact)."""
-
-
 def evaluate_checkpoints(
     run_dir: str | Path, cfg: AloneEvalConfig = AloneEvalConfig(), progress: bool = True
 ) -> list[dict[str, Any]]:
@@ -164,7 +161,6 @@ def evaluate_checkpoints(
     ``evals_checkpoints.jsonl`` (checkpoints already in it are not evaluated again). For runs
     trained without evaluations, or to evaluate more envs."""
     from optimal_control.files import atomic_write_text
-    from rl.alone_eval import EVALS_DIR
 
     run_dir = Path(run_dir)
     train_cfg = load_run_config(run_dir)

@@ -6,7 +6,8 @@ The assist head is left out: at deployment no assistive force exists. The ONNX g
 ``actions`` (B, 29). ``policy.json`` beside it (:func:`deployment_bundle`) says everything a
 deployment script needs without reading this code: joint order with default pose, action scale,
 PD gains, effort and position limits; the observation layout term by term (name, columns, unit,
-how to compute it, the noise trained with), the history length and order; the control rate.
+how to compute it, the noise trained with; the task command block by block, from the task's
+command generator), the history length and order; the control rate.
 Every export is checked against torch with onnxruntime; a test rebuilds the observation from the
 bundle alone and compares it with the env's.
 """
@@ -39,9 +40,43 @@ OBSERVATION_TERM_DOCS: dict[str, tuple[str, str]] = {
     "joint_pos": ("rad", "joint angles minus default_pos_rad, in the joint order below"),
     "joint_vel": ("rad/s", "joint velocities, in the joint order below"),
     "last_action": ("-", "the policy's previous output `actions` (zeros at start)"),
-    "command": ("task", "the task command (see the task); absent when its width is 0"),
+    "command": (
+        "see parts",
+        "the task command: `parts` says what each block of its columns holds and how to produce "
+        "it; absent when its width is 0",
+    ),
 }
 """How a robot computes each policy-observation term (the names of the tasks' policy groups)."""
+
+
+def command_parts(command_gen: Any, first_column: int, width: int) -> list[dict[str, Any]]:
+    """The bundle's ``parts`` of the command term at columns ``first_column`` + [0, ``width``):
+    the command generator's blocks (:meth:`rl.tasks.components.Command.columns`) with their
+    columns, or one block saying that the generator describes none."""
+    blocks = command_gen.columns()
+    if not blocks:
+        return [
+            {
+                "name": "command", "columns": [first_column, first_column + width], "unit": "?",
+                "compute": f"not described by the task's command generator "
+                f"({type(command_gen).__name__} has no columns())",
+            }
+        ]  # fmt: skip
+    if sum(b.width for b in blocks) != width:
+        raise ValueError(
+            f"{type(command_gen).__name__}.columns() describes "
+            f"{sum(b.width for b in blocks)} columns, the command has {width}: fix its columns()"
+        )
+    parts, col = [], first_column
+    for block in blocks:
+        parts.append(
+            {
+                "name": block.name, "columns": [col, col + block.width], "unit": block.unit,
+                "compute": block.compute,
+            }
+        )  # fmt: skip
+        col += block.width
+    return parts
 
 
 def deployment_bundle(env: Any) -> dict[str, Any]:
@@ -55,12 +90,13 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
         if width == 0:
             continue
         unit, how = OBSERVATION_TERM_DOCS.get(name, ("?", terms[name].func.__doc__ or ""))
-        obs_terms.append(
-            {
-                "name": name, "columns": [start, start + width], "unit": unit, "compute": how,
-                "scale": terms[name].scale, "training_noise": terms[name].noise,
-            }
-        )  # fmt: skip
+        entry = {
+            "name": name, "columns": [start, start + width], "unit": unit, "compute": how,
+            "scale": terms[name].scale, "training_noise": terms[name].noise,
+        }  # fmt: skip
+        if name == "command":
+            entry["parts"] = command_parts(env.command_gen, start, width)
+        obs_terms.append(entry)
     limits = env.layout.joint_range_rad
     return {
         "format": BUNDLE_FORMAT,

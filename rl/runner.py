@@ -11,6 +11,9 @@ with exact resume.
     curriculum.jsonl     one line per iteration: bounds, applied wrench, switches
     metrics.json         per-iteration figures and the run summary
     policy.onnx          exported motion policy (+ policy.json describing its inputs/outputs)
+    run.lock             while a process trains in it (one process at a time, rl.run_folder)
+
+The file names are :mod:`rl.run_folder`'s (re-exported here).
 
 The loop is rsl-rl's :meth:`~rsl_rl.runners.OnPolicyRunner.learn`, untouched: Algorithm 1 runs in
 the env as an iteration-rate event (:class:`rl.curriculum.CurriculumEvent`), so multi-process
@@ -50,18 +53,24 @@ from rl.alone_eval import AloneEvaluation
 from rl.curriculum import AssistCurriculum, CurriculumEvent, identical_axis_bounds
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task
+from rl.run_folder import (
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    CURRICULUM_LOG,
+    EVENTS_GLOB,
+    GIT_FILE,
+    LAST_CHECKPOINT,
+    METRICS_FILE,
+    POLICY_FILE,
+    WARMSTART_FILE,
+    RunFolderLock,
+)
 from rl.tasks.config import TaskConfig
 from rl.train_config import TrainConfig
 
-CONFIG_FILE = "config.json"
-CHECKPOINT_DIR = "checkpoints"
-LAST_CHECKPOINT = "last.pt"
-CURRICULUM_LOG = "curriculum.jsonl"
-METRICS_FILE = "metrics.json"
-WARMSTART_FILE = "warmstart.json"
-POLICY_FILE = "policy.onnx"
-CHECKPOINT_FORMAT = 2
-"""Version of the checkpoint layout (2: env state and curriculum event inside)."""
+CHECKPOINT_FORMAT = 3
+"""Version of the checkpoint layout (2: env state and curriculum event inside; 3: the env state
+part by part, ``rl.envs.vec_env.PARTS``)."""
 
 
 @dataclass
@@ -300,8 +309,8 @@ class A2CFRunner(OnPolicyRunner):
         state = torch.load(path, weights_only=False, map_location=self.device)
         if state.get("format") != CHECKPOINT_FORMAT:
             raise ValueError(
-                f"{path} is a checkpoint of an older layout (no env state): it cannot be resumed "
-                "exactly; start a new run"
+                f"{path} is a checkpoint of an older layout (format {state.get('format')}, this "
+                f"version reads {CHECKPOINT_FORMAT}): it cannot be resumed exactly; start a new run"
             )
         self.alg.load(state, None, strict=True)
         self.current_learning_iteration = int(state["completed_iterations"])
@@ -470,12 +479,14 @@ def resumable_checkpoint(run_dir: Path) -> Path | None:
 
 def _new_run_dir(cfg: TrainConfig) -> Path:
     name = cfg.run_name or f"{cfg.task}_{cfg.mode}_{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
-    run_dir = Path(cfg.out) / name
+    return Path(cfg.out) / name
+
+
+def _require_unused(run_dir: Path) -> None:
     if (run_dir / CONFIG_FILE).exists():
         raise FileExistsError(
             f"run folder {run_dir} already holds a run: pick another --run-name or use --resume"
         )
-    return run_dir
 
 
 def build_training(
@@ -521,9 +532,22 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
         eta0: initial assist bounds (num_phases, 6) overriding the task's default (the place where
             an oracle artifact's bounds come in).
         verbose: print rsl-rl's per-iteration progress block.
+
+    Raises:
+        rl.run_folder.RunFolderBusyError: another process is training in the run folder.
     """
+    run_dir = Path(cfg.resume) if cfg.resume else _new_run_dir(cfg)
+    # One process at a time writes a run folder: the lock comes before anything in it is read
+    # (for a resume) or written.
+    with RunFolderLock(run_dir, create=not cfg.resume):
+        return _train_locked(cfg, run_dir, eta0, verbose)
+
+
+def _train_locked(
+    cfg: TrainConfig, run_dir: Path, eta0: torch.Tensor | None, verbose: bool
+) -> TrainResult:
+    """:func:`train` while this process holds the run folder's lock."""
     if cfg.resume:
-        run_dir = Path(cfg.resume)
         saved = load_run_config(run_dir)
         cfg = dataclasses.replace(saved, iterations=cfg.iterations, resume=cfg.resume)
         checkpoint = resumable_checkpoint(run_dir)
@@ -535,20 +559,24 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
                 "iteration); starting it again from iteration 0 with its saved config",
                 file=sys.stderr,
             )
-            for stale in [*run_dir.glob("events.out.tfevents*"), run_dir / CURRICULUM_LOG]:
+            for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
                 stale.unlink(missing_ok=True)
             saved_eta0 = json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0")
             if eta0 is None and saved_eta0 is not None:
                 eta0 = torch.tensor(saved_eta0)
     else:
-        run_dir = _new_run_dir(cfg)
+        _require_unused(run_dir)
         checkpoint = None
 
     seed_everything(cfg.seed)
+    if cfg.torch_threads:
+        torch.set_num_threads(cfg.torch_threads)
     quiet: Any = contextlib.nullcontext() if verbose else contextlib.redirect_stdout(io.StringIO())
     with quiet:
         env, runner, rsl_cfg = build_training(cfg, run_dir, eta0)
-    run_dir.mkdir(parents=True, exist_ok=True)  # only once the task and env are known to work
+    # The lock made the folder (and removes it if this start fails before writing a file); the
+    # other ranks of a torchrun job take no lock.
+    run_dir.mkdir(parents=True, exist_ok=True)
     runner.add_git_repo_to_log(str(Path(__file__).resolve().parent))
     if checkpoint is not None:
         runner.load_checkpoint(checkpoint)
@@ -564,7 +592,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
                 "eta0": event.curriculum.eta0.tolist() if event is not None else None,
             },
         )
-        atomic_write_json(run_dir / "git.json", git_revision(Path(__file__).resolve().parent))
+        atomic_write_json(run_dir / GIT_FILE, git_revision(Path(__file__).resolve().parent))
 
     if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
         atomic_write_json(run_dir / WARMSTART_FILE, warm_start(cfg, env, runner))

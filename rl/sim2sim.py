@@ -18,15 +18,25 @@ observation                  the env's terms                          rebuilt fr
                                                                       description (robot-side)
 ============================ ======================================== ===========================
 
-The task's own termination and reward terms score the rollouts (same metrics as ``eval``), so the
-two columns compare like with like. Tasks with a command are not supported here yet (a clear
-error).
+What is shared with training, on purpose, is the task's logic: its command generator and phase
+machine (``task.commands``, ``task.phases``) are built from the task config and driven in the
+training env's order (:class:`TaskLogic`), in their evaluation setting (``for_evaluation``: e.g. the
+walk's full command ranges), from their own generator seeded with ``Sim2SimConfig.seed``. So the
+walk's velocity command and gait clock, the dance's clip reference (each robot starts on its clip
+frame) and the backflip's start signal and phase FSM reach the policy through the bundle's
+``command`` columns as in training. The scene is the plane: a task's terrain is not rebuilt (walk
+runs on flat ground here), and the skill measure (e.g. walk's terrain levels) is not used.
+
+The task's own termination and reward terms score the rollouts (same metrics as ``eval``) on an
+:class:`EnvState` of the sim2sim robots (feet, link-ground contacts, joint accelerations, foot
+timers, episode time, command, phase; no wrench), so the two columns compare like with like.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,12 +45,16 @@ import mujoco
 import numpy as np
 import torch
 
+from rl.envs.contact_timers import ContactTimers
+from rl.envs.model import contact_bodies
+from rl.envs.randomization import nominal_params
 from rl.envs.state import EnvState, quat_rotate_inverse
 from rl.envs.vec_env import GRAVITY_MPS2
 from rl.export import OnnxMotionPolicy
+from rl.run_folder import POLICY_BUNDLE_FILE
 from rl.tasks.config import TaskConfig
 from robots import g1
-from robots.mujoco_model import STAND_KEYFRAME, MujocoModelConfig, build_mujoco_spec
+from robots.mujoco_model import FLOOR_GEOM, STAND_KEYFRAME, MujocoModelConfig, build_mujoco_spec
 
 
 @dataclass(frozen=True)
@@ -51,7 +65,7 @@ class Sim2SimConfig:
     physics_dt_s: float = 0.001  # physics step [s]
     impratio: float = 10.0  # frictional-to-normal impedance ratio of the elliptic cone [-]
     joint_pos_noise_rad: float = 0.05  # uniform +- initial joint offset from the default pose [rad]
-    seed: int = 1  # initial-state seed [-]
+    seed: int = 1  # seed of the initial states and of the task's command and phase draws [-]
 
     def __post_init__(self) -> None:
         if self.num_envs < 1 or self.physics_dt_s <= 0:
@@ -69,8 +83,12 @@ def build_sim2sim_model(cfg: Sim2SimConfig) -> mujoco.MjModel:
     return spec.compile()
 
 
-def bundle_observation(bundle: dict, gyro, quat_wxyz, q, qdot, last_action) -> np.ndarray:
-    """One robot's policy observation from raw signals, as the bundle describes it."""
+def bundle_observation(
+    bundle: dict, gyro, quat_wxyz, q, qdot, last_action, command=None
+) -> np.ndarray:
+    """One robot's policy observation from raw signals, as the bundle describes it; ``command``
+    (C,) is the task command (what a robot's joystick, gait clock or clip player produces, see the
+    command term's ``parts``), needed when the bundle has a command term."""
     w, x, y, z = quat_wxyz
     gravity_b = (
         np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]) * -1.0
@@ -82,93 +100,236 @@ def bundle_observation(bundle: dict, gyro, quat_wxyz, q, qdot, last_action) -> n
         "joint_pos": q - default,
         "joint_vel": qdot,
         "last_action": last_action,
+        "command": command,
     }
     obs = np.zeros(bundle["observation"]["width"])
     for term in bundle["observation"]["terms"]:
         if term["name"] not in signals:
             raise ValueError(f"sim2sim cannot compute observation term '{term['name']}' yet")
         start, stop = term["columns"]
+        if signals[term["name"]] is None:
+            raise ValueError(
+                f"the policy reads a task command (columns {start}:{stop}): pass `command`"
+            )
         obs[start:stop] = term["scale"] * signals[term["name"]]
     return obs
 
 
-def _state(model, datas, task: TaskConfig, tau, action, last_action, time_s) -> EnvState:
-    """The batch EnvState of the sim2sim robots (assistance off), for the task's terms."""
-    qpos = torch.tensor(np.stack([d.qpos for d in datas]), dtype=torch.float32)
-    qvel = torch.tensor(np.stack([d.qvel for d in datas]), dtype=torch.float32)
-    n = qpos.shape[0]
-    quat = qpos[:, 3:7]
-    touch = [model.sensor(f"{s}_touch") for s in g1.SOLE_FRAMES]
-    sites = [model.site(s).id for s in g1.SOLE_FRAMES]
-    contact = torch.tensor([[d.sensordata[t.adr[0]] for t in touch] for d in datas]).float()
-    feet = torch.tensor(np.stack([[d.site_xpos[i] for i in sites] for d in datas])).float()
-    zeros6 = torch.zeros(n, 6)
-    limits = torch.tensor(np.array([model.joint(j.name).range for j in g1.JOINTS])).float()
-    mass = float(model.body_subtreemass[0])
-    return EnvState(
-        base_pos_w=qpos[:, :3], base_quat_w=quat, base_lin_vel_w=qvel[:, :3],
-        base_lin_vel_b=quat_rotate_inverse(quat, qvel[:, :3]), base_ang_vel_b=qvel[:, 3:6],
-        projected_gravity_b=quat_rotate_inverse(quat, torch.tensor([0.0, 0, -1]).expand(n, 3)),
-        joint_pos_rad=qpos[:, 7:], joint_vel_rps=qvel[:, 6:],
-        joint_torque_nm=torch.tensor(tau).float(), foot_contact_force_n=contact, foot_pos_w=feet,
-        action=torch.tensor(action).float(), last_action=torch.tensor(last_action).float(),
-        applied_wrench=zeros6, assist_bound=zeros6, episode_time_s=torch.full((n,), time_s),
-        command=torch.zeros(n, 0), phase=torch.zeros(n, dtype=torch.long),
-        num_phases=task.num_phases, randomization_params=torch.zeros(n, 5),
-        default_joint_pos_rad=torch.tensor(g1.STAND_JOINT_POS_RAD).float(),
-        effort_limit_nm=torch.tensor(g1.EFFORT_LIMIT_NM).float(), weight_n=mass * GRAVITY_MPS2,
-        terminated=torch.zeros(n, dtype=torch.bool), step_dt_s=0.0,
-        joint_acc_rps2=torch.zeros(n, 29), joint_pos_limits_rad=limits,
-        foot_vel_w=torch.zeros(n, 2, 3), foot_air_time_s=torch.zeros(n, 2),
-        foot_contact_time_s=torch.zeros(n, 2), foot_last_air_time_s=torch.zeros(n, 2),
-        foot_first_contact=torch.zeros(n, 2, dtype=torch.bool),
-        body_ground_contact=torch.zeros(n, 0, dtype=torch.bool), contact_body_names=(),
-    )  # fmt: skip
+class TaskLogic:
+    """A task's command generator and phase machine for N robots outside the training env, driven
+    in the order :class:`rl.envs.vec_env.G1VecEnv` drives them.
+
+    At the start: the task's initial-state hook, each part's ``reset_state`` (which may move the
+    robot, e.g. the dance onto its clip frame), each part's ``reset``; then :meth:`advance` with
+    ``dt_s`` 0. After every policy step: :meth:`advance` with the policy step. Both parts are in
+    their evaluation setting (``for_evaluation``) and draw from one generator seeded with ``seed``.
+    """
+
+    def __init__(self, task: TaskConfig, num_envs: int, seed: int) -> None:
+        self.task = task
+        self.generator = torch.Generator().manual_seed(seed)
+        self.command_gen = task.commands.build(num_envs, self.generator)
+        self.phase_machine = task.phases.build(num_envs, self.generator)
+        self.parts = (self.command_gen, self.phase_machine)
+        for part in self.parts:
+            part.for_evaluation()
+        self.command = torch.zeros(num_envs, task.commands.dim)  # (N, C) the policy's next input
+        self.phase = torch.zeros(num_envs, dtype=torch.long)  # (N,) phase of the next step
+
+    def reset(self, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
+        """Start every robot's episode; the float64 MuJoCo initial states ``qpos`` (N, 36) and
+        ``qvel`` (N, 35) are edited in place by the task's hooks."""
+        env_ids = torch.arange(qpos.shape[0])
+        hook = self.task.initial_state.reset_state
+        if hook is not None:
+            hook(env_ids, qpos, qvel, self.generator)
+        for part in self.parts:
+            part.reset_state(env_ids, qpos, qvel, self.generator)
+        for part in self.parts:
+            part.reset(env_ids)
+
+    def advance(self, state: EnvState, dt_s: float) -> None:
+        """Phase and command of the next step from ``state``, the robots after a step of ``dt_s``
+        [s] (0: the initial state)."""
+        self.phase = self.phase_machine.update(state)
+        self.command = self.command_gen.compute(state, dt_s)
 
 
-def run_sim2sim(run_dir: str | Path, task: TaskConfig, num_steps: int,
-                cfg: Sim2SimConfig = Sim2SimConfig()) -> dict[str, Any]:  # fmt: skip
-    """Roll the exported policy of ``run_dir`` out in the second simulator; survival and return."""
-    run_dir = Path(run_dir)
-    bundle_path = run_dir / "policy.json"
-    bundle = json.loads(bundle_path.read_text())
+class _Robots:
+    """The sim2sim robots (one ``MjData`` each) and what their :class:`EnvState` needs beyond it:
+    joint accelerations over the step and the feet's air / contact timers (the training env's
+    :class:`ContactTimers`), the link-ground contacts of the training env's contact bodies."""
+
+    def __init__(
+        self, model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, step_dt_s: float
+    ) -> None:
+        """Robots at ``qpos`` (N, 36), ``qvel`` (N, 35), stepped every ``step_dt_s`` [s]."""
+        self.model = model
+        self.datas = []
+        for q, v in zip(qpos, qvel, strict=True):
+            data = mujoco.MjData(model)
+            data.qpos[:], data.qvel[:] = q, v
+            mujoco.mj_forward(model, data)
+            self.datas.append(data)
+        n = self.num_envs = len(self.datas)
+        self.contact_body_names = contact_bodies(model)
+        self._body_column = np.full(model.nbody, -1)
+        for col, name in enumerate(self.contact_body_names):
+            self._body_column[model.body(name).id] = col
+        self._floor = model.geom(FLOOR_GEOM).id
+        self._touch = [int(model.sensor(f"{s}_touch").adr[0]) for s in g1.SOLE_FRAMES]
+        self._soles = [model.site(s).id for s in g1.SOLE_FRAMES]
+        limits = np.array([model.joint(j.name).range for j in g1.JOINTS])
+        self._joint_limits = torch.tensor(limits).float()
+        self._randomization = nominal_params(n, model)
+        self.weight_n = float(model.body_subtreemass[0]) * GRAVITY_MPS2
+        self.step_dt_s = step_dt_s
+        self.contacts = ContactTimers(n, step_dt_s)
+        self.contacts.reset(torch.arange(n), self._stack("qvel")[:, 6:])
+
+    def _stack(self, field: str) -> torch.Tensor:
+        return torch.tensor(np.stack([getattr(d, field) for d in self.datas])).float()
+
+    def _foot_contact_n(self) -> torch.Tensor:
+        return torch.tensor([[d.sensordata[a] for a in self._touch] for d in self.datas]).float()
+
+    def _foot_vel_w(self, data: mujoco.MjData) -> np.ndarray:
+        vel = np.zeros((2, 6))  # (angular, linear) of each sole site, world orientation
+        for k, site in enumerate(self._soles):
+            mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_SITE, site, vel[k], 0)
+        return vel[:, 3:]
+
+    def _ground_contacts(self, data: mujoco.MjData) -> np.ndarray:
+        flags = np.zeros(len(self.contact_body_names), dtype=bool)
+        geom = np.asarray(data.contact.geom).reshape(-1, 2)
+        on_floor = geom == self._floor
+        other = np.where(on_floor[:, 0], geom[:, 1], geom[:, 0])[on_floor.any(axis=1)]
+        cols = self._body_column[self.model.geom_bodyid[other]]
+        flags[cols[cols >= 0]] = True
+        return flags
+
+    def after_step(self) -> None:
+        """Advance the joint accelerations and foot timers over the policy step just taken."""
+        self.contacts.update(self._stack("qvel")[:, 6:], self._foot_contact_n())
+
+    def state(self, logic: TaskLogic, tau, action, last_action, time_s: float) -> EnvState:
+        """The batch EnvState (assistance off) for the task's terms and logic: ``tau`` (N, 29)
+        [Nm] of the last physics step, motion actions of this and the previous step (N, 29),
+        episode time ``time_s`` [s]."""
+        qpos, qvel = self._stack("qpos"), self._stack("qvel")
+        n = self.num_envs
+        quat = qpos[:, 3:7]
+        feet = np.stack([[d.site_xpos[i] for i in self._soles] for d in self.datas])
+        zeros6 = torch.zeros(n, 6)
+        return EnvState(
+            base_pos_w=qpos[:, :3], base_quat_w=quat, base_lin_vel_w=qvel[:, :3],
+            base_lin_vel_b=quat_rotate_inverse(quat, qvel[:, :3]), base_ang_vel_b=qvel[:, 3:6],
+            projected_gravity_b=quat_rotate_inverse(quat, torch.tensor([0.0, 0, -1]).expand(n, 3)),
+            joint_pos_rad=qpos[:, 7:], joint_vel_rps=qvel[:, 6:],
+            joint_torque_nm=torch.tensor(tau).float(), foot_contact_force_n=self._foot_contact_n(),
+            foot_pos_w=torch.tensor(feet).float(),
+            action=torch.tensor(action).float(), last_action=torch.tensor(last_action).float(),
+            applied_wrench=zeros6, assist_bound=zeros6, episode_time_s=torch.full((n,), time_s),
+            command=logic.command, phase=logic.phase, num_phases=logic.task.num_phases,
+            randomization_params=self._randomization,
+            default_joint_pos_rad=torch.tensor(g1.STAND_JOINT_POS_RAD).float(),
+            effort_limit_nm=torch.tensor(g1.EFFORT_LIMIT_NM).float(), weight_n=self.weight_n,
+            terminated=torch.zeros(n, dtype=torch.bool), step_dt_s=self.step_dt_s,
+            joint_pos_limits_rad=self._joint_limits,
+            foot_vel_w=torch.tensor(np.stack([self._foot_vel_w(d) for d in self.datas])).float(),
+            **self.contacts.fields(),
+            body_ground_contact=torch.from_numpy(
+                np.stack([self._ground_contacts(d) for d in self.datas])
+            ),
+            contact_body_names=self.contact_body_names,
+        )  # fmt: skip
+
+
+def _initial_states(
+    model: mujoco.MjModel, task: TaskConfig, logic: TaskLogic, cfg: Sim2SimConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Initial ``qpos`` (N, 36) and ``qvel`` (N, 35): the standing keyframe with uniform joint
+    noise, a random heading when the task draws one, then the task's logic (:meth:`TaskLogic.reset`,
+    e.g. the dance's clip frame)."""
+    rng = np.random.default_rng(cfg.seed)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEYFRAME).id)
+    n = cfg.num_envs
+    qpos, qvel = np.tile(data.qpos, (n, 1)), np.zeros((n, model.nv))
+    for q in qpos:
+        q[7:] += rng.uniform(-1, 1, g1.NUM_JOINTS) * cfg.joint_pos_noise_rad
+        if task.initial_state.random_yaw:
+            yaw = rng.uniform(-math.pi, math.pi)
+            q[3:7] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+    logic.reset(torch.from_numpy(qpos), torch.from_numpy(qvel))  # views: edited in place
+    return qpos, qvel
+
+
+def load_bundle(run_dir: Path, task: TaskConfig) -> dict[str, Any]:
+    """The deployment bundle of ``run_dir``, checked against ``task``'s command width."""
+    path = run_dir / POLICY_BUNDLE_FILE
+    bundle = json.loads(path.read_text())
     if "joints" not in bundle:
-        raise ValueError(f"{bundle_path} has no deployment bundle (exported before format 2)")
-    if task.commands.dim:
-        raise ValueError(f"sim2sim does not drive task commands yet ('{task.name}' has one)")
+        raise ValueError(f"{path} has no deployment bundle (exported before format 2)")
+    columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}
+    width = columns["command"][1] - columns["command"][0] if "command" in columns else 0
+    if width != task.commands.dim:
+        raise ValueError(
+            f"{path}: the policy reads a command of width {width}, task '{task.name}' makes one of "
+            f"width {task.commands.dim}: evaluate the run with the task (and overrides) it was "
+            "trained on"
+        )
+    return bundle
+
+
+def run_sim2sim(
+    run_dir: str | Path,
+    task: TaskConfig,
+    num_steps: int,
+    cfg: Sim2SimConfig = Sim2SimConfig(),
+    on_step: Callable[[np.ndarray], None] | None = None,
+) -> dict[str, Any]:
+    """Roll the exported policy of ``run_dir`` out in the second simulator, the task's command and
+    phases driven by :class:`TaskLogic`; survival and return of each robot's one episode.
+    ``on_step(obs)`` sees the policy's observation (N, P) of every step before it acts."""
+    run_dir = Path(run_dir)
+    bundle = load_bundle(run_dir, task)
     policy = OnnxMotionPolicy(run_dir / bundle["onnx"])
     model = build_sim2sim_model(cfg)
-    decimation = round(1.0 / bundle["control"]["policy_rate_hz"] / cfg.physics_dt_s)
+    step_s = 1.0 / bundle["control"]["policy_rate_hz"]
+    decimation = round(step_s / cfg.physics_dt_s)
+    dt = decimation * cfg.physics_dt_s
+    if decimation < 1 or abs(dt - step_s) > 1e-9:
+        raise ValueError(
+            f"sim2sim physics_dt_s {cfg.physics_dt_s} s must divide the policy step {step_s} s"
+        )
     joints = bundle["joints"]
     kp, kd = np.array([j["kp"] for j in joints]), np.array([j["kd"] for j in joints])
     effort = np.array([j["effort_limit_nm"] for j in joints])
     default = np.array([j["default_pos_rad"] for j in joints])
     scale = np.array([j["action_scale_rad"] for j in joints])
     h = bundle["observation"]["history_length"]
-    rng = np.random.default_rng(cfg.seed)
     n = cfg.num_envs
-    datas = []
-    for _ in range(n):
-        data = mujoco.MjData(model)
-        mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEYFRAME).id)
-        data.qpos[7:] += rng.uniform(-1, 1, 29) * cfg.joint_pos_noise_rad
-        yaw = rng.uniform(-math.pi, math.pi)
-        data.qpos[3:7] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
-        mujoco.mj_forward(model, data)
-        datas.append(data)
+    logic = TaskLogic(task, n, cfg.seed)
+    robots = _Robots(model, *_initial_states(model, task, logic, cfg), dt)
+    datas = robots.datas
     last_action = np.zeros((n, 29))
     tau = np.zeros((n, 29))
+    logic.advance(robots.state(logic, tau, last_action, last_action, 0.0), 0.0)
     history = [None] * n
     active = np.ones(n, dtype=bool)
     fell = np.zeros(n, dtype=bool)
     returns = np.zeros(n)
     lengths = np.zeros(n)
-    dt = decimation * cfg.physics_dt_s
     for step in range(num_steps):
+        command = logic.command.numpy()
         obs = np.stack([
-            bundle_observation(bundle, d.qvel[3:6], d.qpos[3:7], d.qpos[7:], d.qvel[6:], last_action[i])
+            bundle_observation(bundle, d.qvel[3:6], d.qpos[3:7], d.qpos[7:], d.qvel[6:],
+                               last_action[i], command[i])
             for i, d in enumerate(datas)
         ])  # fmt: skip
+        if on_step is not None:
+            on_step(obs)
         for i in range(n):
             history[i] = [obs[i]] * h if history[i] is None else history[i][1:] + [obs[i]]
         hist = np.stack([np.concatenate(hh) for hh in history]).astype(np.float32)
@@ -185,14 +346,18 @@ def run_sim2sim(run_dir: str | Path, task: TaskConfig, num_steps: int,
                 )
                 data.qfrc_applied[6:] = tau[i]
                 mujoco.mj_step(model, data)
-        state = _state(model, datas, task, tau, action, last_action, (step + 1) * dt)
-        failed = torch.stack([t(state) for t in task.terminations]).any(dim=0).numpy()
-        state.terminated = torch.from_numpy(failed)
+        robots.after_step()
+        state = robots.state(logic, tau, action, last_action, (step + 1) * dt)
+        per_term = [t(state) for t in task.terminations]
+        failed = torch.stack(per_term).any(dim=0) if per_term else torch.zeros(n, dtype=torch.bool)
+        state.terminated = failed
+        failed = failed.numpy()
         reward = sum(t(state) * (t.weight * dt) for t in task.rewards).numpy()
         returns += np.where(active, reward, 0.0)
         lengths += active
         fell |= active & failed
         active &= ~failed
+        logic.advance(state, dt)
         last_action = action
         if not active.any():
             break

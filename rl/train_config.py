@@ -67,6 +67,7 @@ class TrainConfig:
         DEFAULT_RANDOM_MASK_PROB  # zeta, probability of dropping a wrench component [-]
     )
     device: str = "cpu"  # torch device of the learner [-]
+    torch_threads: int = 1  # torch intra-op threads (1: measured best on 2 shared cores, see bench train); 0: torch's default [-]
     export_onnx: bool = True  # export the motion policy to ONNX at the end [-]
     random_episode_start: bool = True  # random initial episode counters (spread time-outs) [-]
     env: EnvConfig = field(default_factory=EnvConfig)  # env size, threads, seed, switches
@@ -88,6 +89,10 @@ class TrainConfig:
     def __post_init__(self) -> None:
         """Check values a user could get wrong."""
         get_mode(self.mode)
+        if self.torch_threads < 0:
+            raise ValueError(
+                f"torch_threads must be >= 0 (0: torch's default), got {self.torch_threads}"
+            )
         for name in ("iterations", "num_steps_per_env", "save_interval"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"train config '{name}' must be > 0, got {getattr(self, name)}")

@@ -29,7 +29,7 @@ from robots import g1
 Coach = Callable[[G1VecEnv], torch.Tensor]
 """A coach: the env (its ``env_state``, and for reference-tracking coaches its command's time along
 the reference) -> pelvis wrench (N, 6) [N, Nm] in the robot's heading frame (the assist action's
-frame, :func:`rl.envs.state.heading_to_world`), within the current bound."""
+frame, :class:`rl.envs.assist_action.AssistAction`), within the current bound."""
 
 
 @dataclass(frozen=True)

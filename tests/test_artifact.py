@@ -168,3 +168,25 @@ def test_reference_validation_names_the_problem(g1_pin):
         bad_nan.validate()
     with pytest.raises(ReferenceError, match="shape"):
         Reference(**{**ref.__dict__, "a": ref.a[:, :30]}).validate()
+
+
+def test_eta0_bounds_the_reference_heading_axes():
+    """The env bounds the assist wrench per heading axis: a reference that faces another way or
+    turns needs the same eta0 as one facing +x (fx and fy do not swap)."""
+    from optimal_control.bounds import wrench_in_heading_frame
+
+    rng = np.random.default_rng(0)
+    wrench_h = rng.normal(size=(300, 6)) * np.array([10.0, 40.0, 5.0, 50.0, 20.0, 10.0])
+    phase = np.zeros(300, dtype=int)
+    expected = eta0_per_phase(wrench_h, phase, 1)
+    for yaw in (np.full(300, np.pi / 2), np.linspace(0.0, 2 * np.pi, 300)):
+        quat_xyzw = np.stack([0 * yaw, 0 * yaw, np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+        c, s = np.cos(yaw), np.sin(yaw)
+        wrench_w = wrench_h.copy()
+        for k in (0, 3):  # the world wrench of a robot heading along yaw
+            wrench_w[:, k] = c * wrench_h[:, k] - s * wrench_h[:, k + 1]
+            wrench_w[:, k + 1] = s * wrench_h[:, k] + c * wrench_h[:, k + 1]
+        back = wrench_in_heading_frame(wrench_w, quat_xyzw)
+        np.testing.assert_allclose(back, wrench_h, atol=1e-9)
+        np.testing.assert_allclose(eta0_per_phase(back, phase, 1), expected, rtol=1e-9)
+        assert not np.allclose(eta0_per_phase(wrench_w, phase, 1), expected, rtol=0.05)

@@ -95,6 +95,26 @@ def test_every_flag_of_every_command_has_help() -> None:
         assert ("train", flag) in seen, flag
 
 
+def test_train_takes_the_short_flags_other_rl_tools_use() -> None:
+    """``--num-envs`` and ``--seed`` (Isaac Lab / mjlab spelling) are second spellings of
+    ``--env-num-envs`` and ``--env-seed``: the same dest, no second field; ``--device`` is
+    TrainConfig's own; ``--help`` lists both spellings."""
+    from rl.train_config import TrainConfig
+
+    parser = build_parser("train")
+    short = parser.parse_args(["train", "--num-envs", "4096", "--seed", "7", "--device", "cuda:0"])
+    long = parser.parse_args(["train", "--env-num-envs", "4096", "--env-seed", "7"])
+    cfg = config_from_args(TrainConfig, short)
+    assert (cfg.env.num_envs, cfg.seed, cfg.device) == (4096, 7, "cuda:0")
+    assert cfg.env == config_from_args(TrainConfig, long).env
+    assert given_flags(short) == {"device": "cuda:0", "env.num_envs": 4096, "env.seed": 7}
+    assert not hasattr(short, "num_envs") and not hasattr(short, "seed")
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    text = " ".join(sub.choices["train"].format_help().split())
+    assert "--env-num-envs NUM_ENVS, --num-envs NUM_ENVS" in text
+    assert "--env-seed SEED, --seed SEED" in text and "--device DEVICE" in text
+
+
 def test_cli_reference_in_docs_is_current() -> None:
     """docs/cli.md is the parser's own help; regenerate it with the command in its header."""
     from pathlib import Path

@@ -16,7 +16,7 @@ from rl.registry import get_task, make_env
 from rl.runner import train
 from rl.tasks import dance_terms as dt
 from rl.tasks.config import quiet
-from rl.tasks.dance import DANCE, dance_task
+from rl.tasks.dance import DANCE, DANCE_PAPER, dance_task
 
 
 @pytest.fixture(scope="module")
@@ -83,11 +83,16 @@ def test_reward_terms_against_hand_values() -> None:
     )
     torch.testing.assert_close(dt.track_joint_position(s), torch.tensor([1.0, math.exp(-0.3125)]))
     torch.testing.assert_close(dt.joint_error_mean_abs(s), torch.tensor([0.0, 1.5 / 29]))
-    weights = {t.name: t.weight for t in DANCE.rewards}
-    assert weights == {"base_position": 10.0, "base_rotation": 5.0, "joint_position": 20.0,
-                       "feet_slide": -1.0, "action_rate": -0.01, "joint_acc": -2.5e-7,
-                       "torques": -1e-5}  # fmt: skip
-    assert DANCE.less_assist_weight == 2.0
+    # the steep term: exp(-(rms / 0.2)^2), rms = sqrt(1.25 / 29) for env 1
+    torch.testing.assert_close(
+        dt.track_joint_rms(s, std_rad=0.2), torch.tensor([1.0, math.exp(-1.25 / 29 / 0.04)])
+    )
+    paper = {"base_position": 10.0, "base_rotation": 5.0, "joint_position": 20.0,
+             "feet_slide": -1.0, "action_rate": -0.01, "joint_acc": -2.5e-7, "torques": -1e-5}  # fmt: skip
+    assert {t.name: t.weight for t in DANCE_PAPER.rewards} == paper
+    recipe = {**paper, "joint_position": 5.0, "joint_rms": 15.0, "termination": -100.0}
+    assert {t.name: t.weight for t in DANCE.rewards} == recipe
+    assert DANCE.less_assist_weight == 2.0 == DANCE_PAPER.less_assist_weight
 
 
 def test_resets_put_a_hovering_clip_on_the_floor(hovering_clip) -> None:

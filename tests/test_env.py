@@ -406,7 +406,7 @@ def test_link_ground_contacts_and_foot_timers_from_the_physics():
     assert extras["log"]["Termination/link_on_ground"] == 0.5 and dones.tolist() == [False, True]
     env = quiet_env(1)
     env.state[0, z] += 0.15
-    env._refresh_sensors(torch.arange(1))
+    env.physics.refresh_sensors(torch.arange(1))
     air = []
     for _ in range(20):
         env.step(zero_actions(env))

@@ -217,6 +217,28 @@ def test_non_finite_flags_are_named(capsys, no_debug, tmp_path, args, needle):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["solve-walk", "--duration", "1e9"], ("--duration", "(0, 120] s", "step cycle")),
+        (["solve-walk", "--duration", "0"], ("--duration", "(0, 120] s")),
+        (["solve-walk", "--ik-dt-s", "1e-7"], ("--ik-dt-s", "[0.001, 0.02] s")),
+        (["solve-dance", "--ik-dt-s", "0"], ("--ik-dt-s", "[0.001, 0.02] s")),
+        (["solve-backflip", "--air-intervals", "100000"], ("--air-intervals", "[1, 100]")),
+        (["solve-backflip", "--stand-intervals", "0"], ("--stand-intervals", "[1, 100]")),
+        (["demo", "--walk-duration-s", "1e6"], ("--walk-duration-s", "(0, 120] s")),
+    ],
+)
+def test_size_flags_are_bounded_with_the_limit_and_why(capsys, no_debug, tmp_path, args, needles):
+    """A size out of bounds is one line naming the flag, the limit and the reason, before any
+    work (``--duration 1e9`` was an OverflowError from inside placo)."""
+    out_flag = {"solve-backflip": "--oracle-out"}.get(args[0], "--out")
+    code, err = _run(capsys, *args, out_flag, str(tmp_path / "o"))
+    assert code == 2
+    _assert_one_clear_line(err, *needles, "give a value in")
+    assert not (tmp_path / "o").exists()
+
+
 def test_debug_env_keeps_the_traceback(monkeypatch):
     monkeypatch.setenv(DEBUG_ENV, "1")
     with pytest.raises(ValueError, match="--vx"):

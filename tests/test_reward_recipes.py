@@ -27,11 +27,11 @@ def _fall_at_once_per_s(task: str) -> float:
     lay = env.layout
     q0 = lay.qpos.start
     half = math.pi / 4
-    env._state_t[:, q0 + 2] = 0.15  # pelvis 15 cm above the floor
-    env._state_t[:, q0 + 3 : q0 + 7] = torch.tensor(
+    env.physics.state_t[:, q0 + 2] = 0.15  # pelvis 15 cm above the floor
+    env.physics.state_t[:, q0 + 3 : q0 + 7] = torch.tensor(
         [math.cos(half), math.sin(half), 0.0, 0.0]
     ).double()
-    env._state_t[:, lay.qvel] = 0.0
+    env.physics.state_t[:, lay.qvel] = 0.0
     _, reward, dones, extras = env.step(torch.zeros(2, env.num_actions))
     assert bool(dones.all()) and not bool(extras["time_outs"].any()), f"{task}: did not fail"
     return float(reward.mean()) / env.step_dt_s

@@ -19,7 +19,13 @@ from rl.evaluate import EvalConfig, evaluate
 from rl.runner import train
 from rl.tasks import walk_terms
 from rl.tasks.terrain import HeightMap, Terrain, TerrainConfig, tile_boxes
-from rl.tasks.walk import WALK, TerrainCurriculumConfig, VelocityCommandConfig
+from rl.tasks.walk import (
+    WALK,
+    WALK_FLAT,
+    WALK_PAPER,
+    TerrainCurriculumConfig,
+    VelocityCommandConfig,
+)
 
 SMALL = TerrainConfig(num_rows=3, num_cols=7, tile_size_m=3.0, rough_cell_m=0.5, obstacle_count=4)
 """Every tile type at three levels, small tiles (fast to build and ray cast)."""
@@ -225,13 +231,18 @@ def test_cost_of_transport_finite_at_zero_speed() -> None:
     assert torch.allclose(cot, expected)
 
 
-def test_walk_task_is_the_paper_table() -> None:
-    weights = {t.name: t.weight for t in WALK.rewards}
+def test_walk_paper_is_the_paper_table_and_walk_the_recipe() -> None:
+    weights = {t.name: t.weight for t in WALK_PAPER.rewards}
     assert weights == {
         "track_lin_vel_xy": 5.0, "track_ang_vel_z": 2.0, "feet_air_time": 1.0, "feet_slide": -1.0,
         "cost_of_transport": -0.01, "stand_still": -0.1, "action_rate": -0.01,
         "joint_acc": -2.5e-7, "joint_pos_limits": -1.0, "orientation": -1.0,
     }  # fmt: skip
+    recipe = {t.name for t in WALK.rewards}
+    assert {"alive", "termination", "gait_contact", "energy", "upper_body_pose"} <= recipe
+    assert {t.name for t in WALK_FLAT.rewards} == recipe | {"feet_swing_height"}
+    assert WALK.commands.dim == 5 and WALK_PAPER.commands.dim == 3  # gait clock
+    assert WALK_FLAT.scene.terrain is None and WALK.scene.terrain is not None
     assert WALK.less_assist_weight == 2.0
     assert "height_scan" in WALK.observations.privileged.names()
     assert "height_scan" in WALK.observations.critic.names()

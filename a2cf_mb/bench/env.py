@@ -115,6 +115,14 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = Tru
     )
     env = make_env(task, num_envs, num_threads=cfg.num_threads, seed=cfg.seed)
     generator = torch.Generator().manual_seed(cfg.seed)
+    try:
+        env.step(_random_actions(env, cfg, generator))
+    except ValueError as err:
+        env.close()
+        if link_collisions or "no ground-contact sensor" not in str(err):
+            raise
+        # the task's terms read link contacts (e.g. walk ends on pelvis contact): no such env
+        return {"skipped": f"task '{cfg.task}' needs the link collision primitives ({err})"}
     for _ in range(cfg.warmup_steps):
         env.step(_random_actions(env, cfg, generator))
     states, controls = _record(env, cfg, generator)
@@ -169,7 +177,8 @@ def run_env_benchmark(cfg: EnvBenchConfig = EnvBenchConfig()) -> dict:
             for lc in cfg.link_collisions
         },
     }
-    results["threads"] = next(iter(results["sizes"].values()))["threads"]
+    measured = [r for r in results["sizes"].values() if "skipped" not in r]
+    results["threads"] = measured[0]["threads"] if measured else cfg.num_threads
     return results
 
 
@@ -182,6 +191,9 @@ def format_results(results: dict) -> str:
         "  model MB",
     ]
     for n, r in results["sizes"].items():
+        if "skipped" in r:
+            lines.append(f"  {n:>18} skipped: {r['skipped']}")
+            continue
         lines.append(
             f"  {n:>18} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "
             f"{r['sim_ceiling_env_steps_per_s']:>9.0f}  {r['env_over_physics']:>11.2f}  "

@@ -1,9 +1,11 @@
 """``a2cf-mb bench learn``: learning speed of A2CF against the baseline on one task.
 
-Trains the given modes (default baseline and a2cf) one after the other with the same seed, envs,
-rollout length and iteration budget, into ``OUT/<task>_<mode>``; a mode whose run folder already
-holds a finished run (``metrics.json`` with the budget done) is not retrained, an unfinished one
-is resumed. Then :func:`rl.compare.compare_runs` reads the run folders and writes the comparison
+Trains the given modes (default baseline and a2cf) and seeds one after the other with the same envs,
+rollout length and iteration budget, into ``OUT/<task>_<mode>_s<seed>``, each evaluating its motion
+policy alone every ``eval_interval`` iterations; a run folder that already holds a finished run
+(``metrics.json`` with the budget done) is not retrained, an unfinished one is resumed. The
+figures: env steps and wall time to the task's assistance-free target per run, with mean and
+spread over seeds (:mod:`rl.learning_study`). Then :func:`rl.compare.compare_runs` reads the run folders and writes the comparison
 figure and table (``OUT/compare.png``, ``OUT/compare.json``): terrain level (or skill progress),
 force bound, total and tracking reward against iterations and env steps; iterations and env steps
 to given levels and to negligible force.
@@ -20,29 +22,29 @@ from pathlib import Path
 
 from a2cf_mb.bench import register_benchmark
 from rl.envs.config import EnvConfig
-from rl.runner import METRICS_FILE, train
+from rl.run_folder import CONFIG_FILE, METRICS_FILE
+from rl.runner import train
 from rl.train_config import TrainConfig
 
 
 @dataclass(frozen=True)
 class LearnBenchConfig:
-    """Budget of the learning benchmark (same for every mode)."""
+    """Budget of the learning benchmark (same for every mode and seed)."""
 
-    task: str = "walk"  # registered task [-]
+    task: str = "stand"  # registered task [-]
     modes: tuple[str, ...] = ("baseline", "a2cf")  # training modes compared [-]
-    num_envs: int = 64  # parallel envs per run [-]
+    seeds: tuple[int, ...] = (0, 1, 2)  # seeds, one run per mode and seed [-]
+    num_envs: int = 512  # parallel envs per run [-]
     num_steps_per_env: int = 24  # rollout length per iteration [-]
-    iterations: int = 200  # learning iterations per run [-]
-    seed: int = 0  # seed of every run [-]
+    iterations: int = 250  # learning iterations per run [-]
     num_threads: int = 0  # physics threads; 0 = all cores [-]
+    eval_interval: int = 10  # iterations between two evaluations of the policy alone [-]
+    eval_envs: int = 32  # fresh envs of each evaluation of the policy alone [-]
     levels: tuple[float, ...] = (
         1.0,
         2.0,
         3.0,
     )  # terrain levels whose first crossing is reported [-]
-    eval_envs: int = (
-        0  # envs of an assistance-off evaluation of each run after training; 0: none [-]
-    )
     out: str = "runs/bench_learn"  # folder of the run folders and the comparison [-]
     output: str = ""  # optional json file for the figures
 
@@ -55,33 +57,37 @@ def _finished(run_dir: Path, iterations: int) -> bool:
 
 
 def run_learn_benchmark(cfg: LearnBenchConfig = LearnBenchConfig()) -> dict:
-    """Train each mode (or reuse its finished run), then compare the runs."""
+    """Train each mode and seed (or reuse / resume its run), then compare: env steps and wall
+    time to the task's assistance-free target per run, mean and spread over seeds
+    (:func:`rl.learning_study.summarise_study`), and the training curves (:func:`compare_runs`)."""
+    from rl.alone_eval import AloneEvalConfig
     from rl.compare import compare_runs
-    from rl.evaluate import EvalConfig, evaluate
+    from rl.learning_study import summarise_study
 
     out = Path(cfg.out)
     runs, times = [], {}
     for mode in cfg.modes:
-        name = f"{cfg.task}_{mode}"
-        run_dir = out / name
-        if not _finished(run_dir, cfg.iterations):
-            train_cfg = TrainConfig(
-                task=cfg.task,
-                mode=mode,
-                iterations=cfg.iterations,
-                num_steps_per_env=cfg.num_steps_per_env,
-                out=str(out),
-                run_name=name,
-                resume=str(run_dir) if (run_dir / "config.json").is_file() else "",
-                env=EnvConfig(num_envs=cfg.num_envs, num_threads=cfg.num_threads, seed=cfg.seed),
-            )
-            start = time.perf_counter()
-            train(train_cfg, verbose=False)
-            times[mode] = time.perf_counter() - start
-            if cfg.eval_envs:
-                evaluate(run_dir, EvalConfig(num_envs=cfg.eval_envs))
-        runs.append(run_dir)
+        for seed in cfg.seeds:
+            name = f"{cfg.task}_{mode}_s{seed}"
+            run_dir = out / name
+            if not _finished(run_dir, cfg.iterations):
+                train_cfg = TrainConfig(
+                    task=cfg.task,
+                    mode=mode,
+                    iterations=cfg.iterations,
+                    num_steps_per_env=cfg.num_steps_per_env,
+                    out=str(out),
+                    run_name=name,
+                    resume=str(run_dir) if (run_dir / CONFIG_FILE).is_file() else "",
+                    env=EnvConfig(num_envs=cfg.num_envs, num_threads=cfg.num_threads, seed=seed),
+                    eval=AloneEvalConfig(interval=cfg.eval_interval, num_envs=cfg.eval_envs),
+                )
+                start = time.perf_counter()
+                train(train_cfg, verbose=False)
+                times[name] = time.perf_counter() - start
+            runs.append(run_dir)
     result = compare_runs(runs, out, levels=cfg.levels)
+    result["study"] = summarise_study(runs, out)
     result["config"] = dataclasses.asdict(cfg)
     result["train_wall_s"] = times
     return result
@@ -91,7 +97,17 @@ def format_results(results: dict) -> str:
     """The comparison table as text."""
     from rl.compare import format_table
 
-    return format_table(results)
+    lines = [format_table(results), "", "assistance-free target (env steps to it, per seed):"]
+    for group in results["study"]["groups"]:
+        mean = group["env_steps_to_target_mean"]
+        spread = (
+            f"{mean / 1e6:.2f} M +- {group['env_steps_to_target_std'] / 1e6:.2f} M" if mean else "-"
+        )
+        lines.append(
+            f"  {group['group']:<24} reached {group['reached']:<5} {spread:<20} "
+            f"per seed {group['env_steps_to_target']}"
+        )
+    return "\n".join(lines)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -15,6 +15,7 @@ BENCHMARK_MODULES: tuple[str, ...] = (
     "a2cf_mb.bench.qp",
     "a2cf_mb.bench.backflip",
     "a2cf_mb.bench.learn",
+    "a2cf_mb.bench.train",
     "a2cf_mb.bench.terrain",
 )
 

@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluate.evaluate_checkpoints` and print where the target was reached."""
     from rl.alone_eval import AloneEvalConfig
-    from rl.evaluate import CHECKPOINT_EVALS_LOG, evaluate_checkpoints
+    from rl.evaluate import evaluate_checkpoints
+    from rl.run_folder import CHECKPOINT_EVALS_LOG
 
     rows = evaluate_checkpoints(args.run_dir, config_from_args(AloneEvalConfig, args))
     first = next((r for r in rows if r["target_reached"]), None)

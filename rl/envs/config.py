@@ -1,7 +1,7 @@
 """Configuration of the batched G1 environment (:class:`rl.envs.G1VecEnv`), task-independent.
 
 What a task decides (scene, initial state, pushes, randomisation ranges, observation noise,
-episode length) lives in its :class:`rl.tasks.config.TaskConfig`; the physics step itself
+episode length) lives in its :class:`rl.envs.task_schema.TaskConfig`; the physics step itself
 (0.005 s) in :class:`robots.mujoco_model.MujocoModelConfig`; the assist switches (on/off, zeta,
 less-assist reward) are set at run time by the runner (:meth:`G1VecEnv.set_random_mask_prob`, ...),
 the paper's zeta default living once in :data:`rl.assist.DEFAULT_RANDOM_MASK_PROB`.

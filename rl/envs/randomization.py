@@ -1,14 +1,16 @@
-"""Domain randomisation: per-env friction, payload and centre-of-mass offset written into each env's
-own ``MjModel`` copy, and pushes as base velocity kicks.
+"""Domain randomisation: friction, payload and centre-of-mass offset written into each env's own
+``MjModel`` copy (:class:`Randomizer`, the env's part; :class:`ModelRandomizer` writes one row).
 
-Parameters are resampled for an env whenever it resets; they are reported in the privileged
-observations in the order of :data:`PARAM_NAMES`.
+Parameters are resampled for an env whenever it resets (or drawn once per shared copy, see
+``RandomizationConfig.model_groups``); they are reported in the privileged observations in the
+order of :data:`PARAM_NAMES`. Pushes are :mod:`rl.envs.pushes`.
 """
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -17,7 +19,7 @@ import torch
 from robots import g1
 
 if TYPE_CHECKING:
-    from rl.tasks.config import RandomizationConfig
+    from rl.envs.task_schema import RandomizationConfig
 
 PARAM_NAMES = ("friction", "payload_kg", "com_offset_x_m", "com_offset_y_m", "com_offset_z_m")
 """Columns of the randomisation parameter tensor (N, 5)."""
@@ -98,3 +100,56 @@ class ModelRandomizer:
         # Scale the inertia with the mass (same shape, denser), keep it physical.
         model.body_inertia[self.body] = self.nominal_inertia * (mass / self.nominal_mass_kg)
         model.body_ipos[self.body] = self.nominal_ipos_m + params[2:5]
+
+
+class Randomizer:
+    """The env's randomisation part: the model copies, their parameter rows (N, 5) and the draws.
+
+    With ``model_groups == 0`` every env has its own copy, redrawn whenever it resets; with G > 0
+    there are G copies drawn once (env i steps with copy i % G); disabled, every env steps with
+    the nominal model and reports its nominal parameters.
+    """
+
+    def __init__(
+        self,
+        cfg: RandomizationConfig,
+        model: mujoco.MjModel,
+        num_envs: int,
+        generator: torch.Generator,
+    ) -> None:
+        """Copies of ``model`` for ``num_envs`` envs; group copies are drawn here."""
+        self.cfg, self.generator = cfg, generator
+        self.writer = ModelRandomizer.for_model(model, cfg.payload_body)
+        if cfg.enabled:
+            self.writer.check_payload_range(cfg.payload_mass_range_kg)
+        self.per_env = cfg.enabled and cfg.model_groups == 0
+        count = num_envs if cfg.model_groups == 0 else min(cfg.model_groups, num_envs)
+        self.model_copies = [copy.copy(model) for _ in range(count)] if cfg.enabled else [model]
+        self.models = [self.model_copies[i % len(self.model_copies)] for i in range(num_envs)]
+        self.params = nominal_params(num_envs, model)
+        if cfg.enabled and not self.per_env:
+            groups = sample_params(count, cfg, generator)
+            for model_copy, row in zip(self.model_copies, groups.double().numpy(), strict=True):
+                self.writer.apply(model_copy, row)
+            self.params = groups[torch.arange(num_envs) % count].clone()
+
+    def reset(self, env_ids: torch.Tensor) -> None:
+        """Per-env copies: draw and write fresh parameters for ``env_ids`` (M,)."""
+        if not self.per_env:
+            return
+        params = sample_params(env_ids.numel(), self.cfg, self.generator)
+        self.params[env_ids] = params
+        for i, row in zip(env_ids.tolist(), params.double().numpy(), strict=True):
+            self.writer.apply(self.models[i], row)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The parameter rows (the copies are rebuilt from them)."""
+        return {"params": self.params.clone()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the rows and write them into the copies."""
+        self.params = state["params"].clone()
+        if self.cfg.enabled:
+            rows = self.params.double().numpy()
+            for i, model_copy in enumerate(self.model_copies):
+                self.writer.apply(model_copy, rows[i])

@@ -40,14 +40,8 @@ def quat_multiply(a_wxyz: torch.Tensor, b_wxyz: torch.Tensor) -> torch.Tensor:
 
 def heading_to_world(wrench_h: torch.Tensor, quat_wxyz: torch.Tensor) -> torch.Tensor:
     """Rotate wrenches (N, 6) from each robot's heading frame (x forward along the pelvis yaw,
-    z up) to the world frame, for ``xfrc_applied``.
-
-    Why a heading frame: episodes start at a random yaw, and nothing the force agent observes
-    tells it the heading, so a world-frame ``mx`` is a different push for every robot; in the
-    heading frame ``my`` is always the pitch torque a backflip needs and ``fx`` a forward push
-    (the paper's per-axis bounds read that way; the oracle's references face +x, where the two
-    frames agree).
-    """
+    z up) to the world frame, for ``xfrc_applied``: the assist wrench's frame and why it is that
+    one are stated in :class:`rl.envs.assist_action.AssistAction`."""
     return _rotate_yaw(wrench_h, yaw_rad(quat_wxyz))
 
 
@@ -95,9 +89,7 @@ class EnvState:
     foot_pos_w: torch.Tensor  # (N, 2, 3) left / right sole centre position [m]
     action: torch.Tensor  # (N, 29) motion action of this step [-]
     last_action: torch.Tensor  # (N, 29) motion action of the previous step [-]
-    applied_wrench: (
-        torch.Tensor
-    )  # (N, 6) pelvis wrench applied this step: force_w [N], torque_w [Nm]
+    applied_wrench: torch.Tensor  # (N, 6) assist wrench of this step, heading frame [N, Nm]
     assist_bound: torch.Tensor  # (N, 6) eta of each env's phase [N, Nm]
     episode_time_s: torch.Tensor  # (N,) time since the env's last reset [s]
     command: torch.Tensor  # (N, C) the task's command (C = 0 without one)

@@ -26,7 +26,13 @@ import numpy as np
 import torch
 
 from rl.envs.state import EnvState, quat_rotate
-from rl.tasks.components import Command, EpisodeWindow, PhaseMachine, SkillMeasure
+from rl.tasks.components import (
+    Command,
+    CommandColumns,
+    EpisodeWindow,
+    PhaseMachine,
+    SkillMeasure,
+)
 from robots import g1
 
 BACKFLIP_PHASES = ("stand", "crouch", "jump", "air", "land")
@@ -216,6 +222,17 @@ class StartCommand(Command):
         """Advance the timers by ``dt_s`` [s]; the command (N, 1) is 1 once the delay passed."""
         self.time_s += dt_s
         return (self.time_s >= self.delay_s).to(torch.float32).unsqueeze(-1)
+
+    def columns(self) -> tuple[CommandColumns, ...]:
+        """The start signal."""
+        low, high = self.cfg.delay_range_s
+        return (
+            CommandColumns(
+                "start", 1, "-",
+                "0 while the robot stands, then 1 for the rest of the episode: the signal to "
+                f"flip (in training 1 from a delay drawn in [{low:g}, {high:g}] s after the start)",
+            ),
+        )  # fmt: skip
 
     def reference_time_s(self) -> torch.Tensor:
         """Time since the start command (N,) [s], negative while the robot waits: an oracle

@@ -1,232 +1,29 @@
-"""Stateful parts of a task: its command generator, phase machine and skill-progress measure.
+"""Stateful parts of a task (command generator, phase machine, skill measure); defined in
+:mod:`rl.envs.components` (the env's schema, below the tasks) and re-exported here, the import
+path task modules use."""
 
-A task config names a *config* for each (frozen dataclass with a ``build`` method); the env builds
-the live object once, calls its hooks and checkpoints its :meth:`state_dict` (exact resume). The
-defaults here serve single-phase tasks without a command; walk, dance and backflip bring their own.
-"""
+from rl.envs.components import (
+    Command,
+    CommandColumns,
+    Component,
+    EpisodeWindow,
+    NoCommandConfig,
+    PhaseMachine,
+    SinglePhaseConfig,
+    SkillMeasure,
+    SurvivalSkill,
+    SurvivalSkillConfig,
+)
 
-from __future__ import annotations
-
-from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import Any
-
-import torch
-
-from rl.envs.state import EnvState
-
-
-class Component:  # noqa: B024 - a base of optional hooks; subclasses add the abstract ones
-    """Hooks shared by every stateful task part; all optional except what subclasses declare."""
-
-    def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
-        """Re-initialise the per-env state of ``env_ids`` (M,) (they start a new episode)."""
-
-    def reset_state(  # noqa: B027 - optional hook
-        self,
-        env_ids: torch.Tensor,
-        qpos: torch.Tensor,
-        qvel: torch.Tensor,
-        generator: torch.Generator,
-    ) -> None:
-        """Edit in place the float64 MuJoCo initial state of resetting envs (``qpos`` (M, 36),
-        ``qvel`` (M, 35)), e.g. place a robot on its terrain tile or on a reference frame. Called
-        before :meth:`reset`, after the task's initial-state noise."""
-
-    def for_evaluation(self) -> None:  # noqa: B027 - optional hook
-        """Switch to the finished skill's setting for an evaluation of the policy alone (e.g. a
-        command curriculum's full ranges)."""
-
-    def log(self) -> dict[str, float]:
-        """Scalars to log this step (e.g. ``Curriculum/terrain_level``); averaged per iteration."""
-        return {}
-
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue exactly after a resume (tensors are cloned)."""
-        return {}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:  # noqa: B027 - optional hook
-        """Restore :meth:`state_dict` output."""
-
-
-# ------------------------------------------------------------------------------------ commands
-class Command(Component, ABC):
-    """Produces the task command (N, C) the policy observes and rewards read."""
-
-    reference_anchor_phase: str | None = None
-    """Phase of the oracle artifact whose first frame is time 0 of :meth:`reference_time_s`
-    (None: the artifact's first frame). The backflip counts from its start command, which the
-    artifact's reference reaches at the start of its Crouch."""
-
-    @abstractmethod
-    def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
-        """Advance by one policy step of ``dt_s`` [s] and return the command (N, C)."""
-
-    def reference_time_s(self) -> torch.Tensor | None:
-        """Per env, the time along the task's time-indexed reference motion (N,) [s], matching
-        the oracle artifact of the same reference (counted from :attr:`reference_anchor_phase`;
-        negative: before it); None when the task has none (a coach built from an artifact needs
-        it)."""
-        return None
-
-    def reference_joint_pos_rad(self) -> torch.Tensor | None:
-        """Per env, the reference's joint pose (N, 29) [rad] for the state after the next step
-        (what ``--warmstart-motion`` clones the motion head onto); None without a reference."""
-        return None
-
-
-@dataclass(frozen=True)
-class NoCommandConfig:
-    """No command: an (N, 0) tensor."""
-
-    dim: int = 0  # command width C (always 0 here) [-]
-
-    def build(self, num_envs: int, generator: torch.Generator) -> Command:
-        """The live command generator."""
-        return _NoCommand(num_envs)
-
-
-class _NoCommand(Command):
-    def __init__(self, num_envs: int) -> None:
-        self._empty = torch.zeros(num_envs, 0)
-
-    def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
-        return self._empty
-
-
-# ------------------------------------------------------------------------------------- phases
-class PhaseMachine(Component, ABC):
-    """Maps the env state to each env's phase index (N,) long, before the wrench is applied."""
-
-    @abstractmethod
-    def update(self, state: EnvState) -> torch.Tensor:
-        """Phase (N,) long of every env after a step (or a reset)."""
-
-
-@dataclass(frozen=True)
-class SinglePhaseConfig:
-    """One phase for the whole episode."""
-
-    names: tuple[str, ...] = ("main",)  # the one phase's name [-]
-
-    def build(self, num_envs: int, generator: torch.Generator) -> PhaseMachine:
-        """The live phase machine."""
-        if len(self.names) != 1:
-            raise ValueError(f"SinglePhaseConfig takes exactly one name, got {self.names}")
-        return _SinglePhase(num_envs)
-
-
-class _SinglePhase(PhaseMachine):
-    def __init__(self, num_envs: int) -> None:
-        self._zeros = torch.zeros(num_envs, dtype=torch.long)
-
-    def update(self, state: EnvState) -> torch.Tensor:
-        return self._zeros
-
-
-# -------------------------------------------------------------------------------- skill measure
-class EpisodeWindow:
-    """The last ``size`` per-episode values (success flags, errors), oldest dropped first."""
-
-    def __init__(self, size: int) -> None:
-        self.values = torch.zeros(size)
-        self.count = 0
-
-    def push(self, values: torch.Tensor) -> None:
-        """Append per-episode values (M,) (only the newest ``size`` are kept)."""
-        values = values.to(torch.float32)[-self.values.numel() :]
-        n = values.numel()
-        if n:
-            self.values = torch.cat([self.values[n:], values])
-            self.count = min(self.count + n, self.values.numel())
-
-    def mean(self, empty: float = 0.0) -> float:
-        """Mean of the values held (``empty`` before any)."""
-        return float(self.values[-self.count :].mean()) if self.count else empty
-
-    def state_dict(self) -> dict[str, Any]:
-        """Values and fill count."""
-        return {"window": self.values.clone(), "count": self.count}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output."""
-        self.values = state["window"].clone()
-        self.count = int(state["count"])
-
-
-class SkillMeasure(Component, ABC):
-    """Skill relative to its target from finished episodes: >= 1 means learned."""
-
-    @abstractmethod
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Record finished episodes: ``env_ids`` (M,), ``time_outs`` (M,) bool (ended by the time
-        limit, not a failure), ``lived_steps`` (M,) long: policy steps since the env's actual
-        reset (runners may start episode counters at random values; such shortened episodes time
-        out early without having survived a full episode); ``state`` is the batch state at the
-        episodes' last step (before their reset), e.g. for the distance walked."""
-
-    @abstractmethod
-    def progress(self) -> float:
-        """Skill relative to its target, in [0, 1+]."""
-
-    max_episode_length: int  # policy steps of a full episode (set by the measure's constructor)
-
-    def counted(self, time_outs: torch.Tensor, lived_steps: torch.Tensor) -> torch.Tensor:
-        """Finished episodes a skill window counts: failures, and time-outs after a full episode
-        (not those a runner's random episode start cut short)."""
-        return ~time_outs | (lived_steps >= self.max_episode_length)
-
-
-@dataclass(frozen=True)
-class SurvivalSkillConfig:
-    """Skill = fraction of recent finished episodes that survived a full episode, over a target."""
-
-    target_survival: float = 0.9  # survival fraction that counts as learned [-]
-    window: int = 256  # finished episodes in the moving window [-]
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.target_survival <= 1.0:
-            raise ValueError(f"target_survival must be in (0, 1], got {self.target_survival}")
-        if self.window < 1:
-            raise ValueError(f"skill window must be >= 1 episode, got {self.window}")
-
-    def build(self, max_episode_length: int) -> SkillMeasure:
-        """The live measure for episodes of ``max_episode_length`` policy steps."""
-        return SurvivalSkill(self, max_episode_length)
-
-
-class SurvivalSkill(SkillMeasure):
-    """Moving window of survived (1) / fell (0) flags; see :class:`SurvivalSkillConfig`."""
-
-    def __init__(self, cfg: SurvivalSkillConfig, max_episode_length: int) -> None:
-        self.cfg = cfg
-        self.max_episode_length = max_episode_length
-        self.window = EpisodeWindow(cfg.window)
-
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Push flags; episodes cut short by a time limit before a full episode are skipped."""
-        self.window.push(time_outs[self.counted(time_outs, lived_steps)])
-
-    def progress(self) -> float:
-        """Survival fraction of the window over ``target_survival`` (0 before any episode)."""
-        return self.window.mean() / self.cfg.target_survival
-
-    def state_dict(self) -> dict[str, Any]:
-        """The window."""
-        return self.window.state_dict()
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the window."""
-        self.window.load_state_dict(state)
+__all__ = [
+    "Command",
+    "CommandColumns",
+    "Component",
+    "EpisodeWindow",
+    "NoCommandConfig",
+    "PhaseMachine",
+    "SinglePhaseConfig",
+    "SkillMeasure",
+    "SurvivalSkill",
+    "SurvivalSkillConfig",
+]

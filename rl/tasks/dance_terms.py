@@ -28,7 +28,7 @@ import torch
 
 from optimal_control.files import atomic_save_npz
 from rl.envs.state import EnvState, quat_multiply
-from rl.tasks.components import Command, EpisodeWindow, SkillMeasure
+from rl.tasks.components import Command, CommandColumns, EpisodeWindow, SkillMeasure
 from robots import g1
 
 BUILTIN_CLIP = "builtin"
@@ -326,6 +326,30 @@ class ClipTrackingCommand(Command):
         command[at_end, :3] = 0.0
         command[at_end, 3:7] = torch.tensor([1.0, 0.0, 0.0, 0.0])
         return command
+
+    def columns(self) -> tuple[CommandColumns, ...]:
+        """The reference frame after this step: base step displacement, step rotation, joints."""
+        frame = (
+            "of the clip frame the robot should reach after this policy step (clips at the "
+            "policy rate, one frame per step from the episode's start frame, the last frame held "
+            f"past the clip's end; clips: {', '.join(self.cfg.sources)})"
+        )
+        return (
+            CommandColumns(
+                "base_step_displacement", 3, "m",
+                "pelvis displacement over one policy step (world velocity x dt, rotated into the "
+                f"pelvis heading (yaw) frame: x forward, y left, z up) {frame}; 0 past the end",
+            ),
+            CommandColumns(
+                "base_step_rotation", 4, "-",
+                "pelvis rotation over one policy step, unit quaternion w x y z = exp(omega_b dt / 2) "
+                f"(omega_b: pelvis angular velocity, pelvis frame) {frame}; 1 0 0 0 past the end",
+            ),
+            CommandColumns(
+                "joint_pos_ref", g1.NUM_JOINTS, "rad",
+                f"joint angles (absolute, not minus default_pos_rad; order of `joints`) {frame}",
+            ),
+        )  # fmt: skip
 
     def reference_time_s(self) -> torch.Tensor:
         """Per env, the time of its current frame along its clip (N,) [s] (for an oracle

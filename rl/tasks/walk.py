@@ -23,7 +23,13 @@ from rl import rewards, terminations
 from rl.curriculum import paper_bound_rows
 from rl.envs.state import EnvState
 from rl.tasks import walk_terms
-from rl.tasks.components import Command, SinglePhaseConfig, SkillMeasure, SurvivalSkillConfig
+from rl.tasks.components import (
+    Command,
+    CommandColumns,
+    SinglePhaseConfig,
+    SkillMeasure,
+    SurvivalSkillConfig,
+)
 from rl.tasks.config import (
     ObservationsConfig,
     PushConfig,
@@ -149,6 +155,24 @@ class VelocityCommand(Command):
         self.clock_s += dt_s
         self._write_clock()
         return self.command
+
+    def columns(self) -> tuple[CommandColumns, ...]:
+        """Velocity (vx, vy, yaw rate) in the pelvis frame, then the gait clock (sin, cos)."""
+        blocks = (
+            CommandColumns("lin_vel_x", 1, "m/s", "forward velocity to walk at, pelvis frame"),
+            CommandColumns("lin_vel_y", 1, "m/s", "lateral velocity (left positive), pelvis frame"),
+            CommandColumns("ang_vel_z", 1, "rad/s", "yaw rate (counter-clockwise positive)"),
+        )
+        if self.cfg.gait_period_s > 0:
+            blocks += (
+                CommandColumns(
+                    "gait_clock", 2, "-",
+                    f"sin, cos of 2 pi t / {self.cfg.gait_period_s:g} s, t: time since the "
+                    "policy started [s] (the left foot's gait phase; the right foot is half a "
+                    "period later)",
+                ),
+            )  # fmt: skip
+        return blocks
 
     def for_evaluation(self) -> None:
         """Evaluations draw from the full command ranges."""

@@ -1,0 +1,76 @@
+"""What the env remembers between physics reads: the feet's air / contact timers and the joint
+acceleration over the last policy step (the env's contact-timer part)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from rl.envs.state import FOOT_CONTACT_THRESHOLD_N
+from robots import g1
+
+
+class ContactTimers:
+    """Foot timers (N, 2) [s] with Isaac Lab's contact-sensor semantics (``first_contact`` when a
+    foot lands after a swing, ``last_air_time_s`` the length of that swing) and the joint
+    acceleration (N, 29) [rad/s^2] from the joint rates of two consecutive steps."""
+
+    def __init__(self, num_envs: int, step_dt_s: float) -> None:
+        """All timers at 0, no foot just landed."""
+        self.step_dt_s = step_dt_s
+        self.last_joint_vel = torch.zeros(num_envs, g1.NUM_JOINTS)
+        self.joint_acc = torch.zeros(num_envs, g1.NUM_JOINTS)
+        self.foot_air_time_s = torch.zeros(num_envs, 2)
+        self.foot_contact_time_s = torch.zeros(num_envs, 2)
+        self.foot_last_air_time_s = torch.zeros(num_envs, 2)
+        self.foot_first_contact = torch.zeros(num_envs, 2, dtype=torch.bool)
+
+    def update(self, joint_vel_rps: torch.Tensor, foot_force_n: torch.Tensor) -> None:
+        """Advance one policy step from the new joint rates (N, 29) [rad/s] (kept: pass a tensor
+        nobody else edits) and sole normal forces (N, 2) [N]."""
+        dt = self.step_dt_s
+        self.joint_acc = (joint_vel_rps - self.last_joint_vel) / dt
+        self.last_joint_vel = joint_vel_rps
+        contact = foot_force_n > FOOT_CONTACT_THRESHOLD_N
+        self.foot_first_contact = contact & (self.foot_air_time_s > 0)
+        self.foot_last_air_time_s = torch.where(
+            self.foot_first_contact, self.foot_air_time_s + dt, self.foot_last_air_time_s
+        )
+        self.foot_air_time_s = torch.where(contact, 0.0, self.foot_air_time_s + dt)
+        self.foot_contact_time_s = torch.where(contact, self.foot_contact_time_s + dt, 0.0)
+
+    def reset(self, env_ids: torch.Tensor, joint_vel_rps: torch.Tensor) -> None:
+        """Start ``env_ids`` (M,) afresh from their joint rates (M, 29) [rad/s]."""
+        self.last_joint_vel[env_ids] = joint_vel_rps
+        self.joint_acc[env_ids] = 0.0
+        self.foot_air_time_s[env_ids] = 0.0
+        self.foot_contact_time_s[env_ids] = 0.0
+        self.foot_last_air_time_s[env_ids] = 0.0
+        self.foot_first_contact[env_ids] = False
+
+    def fields(self) -> dict[str, torch.Tensor]:
+        """The :class:`rl.envs.state.EnvState` fields of this part."""
+        return {
+            "joint_acc_rps2": self.joint_acc,
+            "foot_air_time_s": self.foot_air_time_s,
+            "foot_contact_time_s": self.foot_contact_time_s,
+            "foot_last_air_time_s": self.foot_last_air_time_s,
+            "foot_first_contact": self.foot_first_contact,
+        }
+
+    def state_dict(self) -> dict[str, Any]:
+        """Every buffer (cloned)."""
+        return {
+            "last_joint_vel": self.last_joint_vel.clone(),
+            "joint_acc": self.joint_acc.clone(),
+            "foot_air_time_s": self.foot_air_time_s.clone(),
+            "foot_contact_time_s": self.foot_contact_time_s.clone(),
+            "foot_last_air_time_s": self.foot_last_air_time_s.clone(),
+            "foot_first_contact": self.foot_first_contact.clone(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        for name, value in state.items():
+            setattr(self, name, value.clone())

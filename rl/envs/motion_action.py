@@ -1,0 +1,49 @@
+"""The motion half of the action as the env applies it: joint PD targets around the standing pose
+(the env's motion-action part)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+
+from robots import g1
+
+
+class MotionAction:
+    """actions[:, :29] = a (N, 29) [-]: joint PD targets ``stand + ACTION_SCALE_RAD * a`` [rad];
+    the action of this step and of the previous one (what observations and rewards read)."""
+
+    def __init__(self, num_envs: int) -> None:
+        """Both actions start at 0 (the standing pose)."""
+        self.stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
+        self.scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32)
+        self.action = torch.zeros(num_envs, g1.NUM_JOINTS)
+        self.last_action = torch.zeros(num_envs, g1.NUM_JOINTS)
+
+    def apply(self, action: torch.Tensor) -> torch.Tensor:
+        """Take this step's action (N, 29); returns the PD targets (N, 29) [rad]."""
+        self.action = action
+        return self.stand_rad + self.scale * action
+
+    def end_step(self) -> None:
+        """This step's action becomes the last one."""
+        self.last_action = self.action.clone()
+
+    def to_actions(self, joint_pos_rad: torch.Tensor) -> torch.Tensor:
+        """The actions (N, 29) whose PD targets are ``joint_pos_rad`` (N, 29) [rad]."""
+        return (joint_pos_rad.float() - self.stand_rad) / self.scale
+
+    def reset(self, env_ids: torch.Tensor) -> None:
+        """Zero both actions of ``env_ids`` (M,)."""
+        self.action[env_ids] = 0.0
+        self.last_action[env_ids] = 0.0
+
+    def state_dict(self) -> dict[str, Any]:
+        """Both actions."""
+        return {"action": self.action.clone(), "last_action": self.last_action.clone()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore both actions."""
+        self.action = state["action"].clone()
+        self.last_action = state["last_action"].clone()

@@ -1,0 +1,53 @@
+"""Random pushes: horizontal pelvis velocity kicks at random intervals (the env's push part)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import torch
+
+if TYPE_CHECKING:
+    from rl.envs.physics import Physics
+    from rl.envs.task_schema import PushConfig
+
+
+class Pushes:
+    """Per-env push timers (N,) [s]; an env whose timer runs out gets a uniform horizontal kick of
+    at most ``velocity_xy_mps`` per axis and a new interval from ``interval_range_s``."""
+
+    def __init__(
+        self, cfg: PushConfig, num_envs: int, step_dt_s: float, generator: torch.Generator
+    ) -> None:
+        """Timers start at 0; :meth:`reset` draws them."""
+        self.cfg, self.step_dt_s, self.generator = cfg, step_dt_s, generator
+        self.timer_s = torch.zeros(num_envs)
+
+    def apply(self, physics: Physics) -> None:
+        """Count one policy step down and kick the envs whose timer ran out (before the physics)."""
+        if not self.cfg.enabled:
+            return
+        self.timer_s -= self.step_dt_s
+        ids = (self.timer_s <= 0).nonzero().flatten()
+        if ids.numel() == 0:
+            return
+        vmax = self.cfg.velocity_xy_mps
+        kick = (2 * torch.rand(ids.numel(), 2, generator=self.generator) - 1) * vmax
+        physics.qvel[ids, 0:2] += kick.double()
+        self.timer_s[ids] = self._interval(ids.numel())
+
+    def reset(self, env_ids: torch.Tensor) -> None:
+        """Draw the next push time of ``env_ids`` (M,) (drawn with pushes off too, which keeps
+        the random stream of a seed what it has always been)."""
+        self.timer_s[env_ids] = self._interval(env_ids.numel())
+
+    def _interval(self, num: int) -> torch.Tensor:
+        low, high = self.cfg.interval_range_s
+        return low + (high - low) * torch.rand(num, generator=self.generator)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The timers."""
+        return {"timer_s": self.timer_s.clone()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the timers."""
+        self.timer_s = state["timer_s"].clone()

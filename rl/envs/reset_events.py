@@ -1,0 +1,90 @@
+"""Where episodes start and how long they last: the task's initial-state distribution, the episode
+counters and the time-outs (the env's reset part)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
+import torch
+
+from rl.envs.state import quat_multiply
+from robots import g1
+
+if TYPE_CHECKING:
+    from rl.envs.components import Component
+    from rl.envs.physics import Physics
+    from rl.envs.task_schema import InitialStateConfig
+
+
+class ResetEvents:
+    """Initial states around the standing keyframe, and per env the policy steps of its episode
+    (``episode_length_buf`` (N,), which runners may overwrite to spread time-outs) and since its
+    actual reset (``lived_steps`` (N,))."""
+
+    def __init__(
+        self,
+        cfg: InitialStateConfig,
+        num_envs: int,
+        max_episode_length: int,
+        generator: torch.Generator,
+    ) -> None:
+        """Counters at 0; episodes time out after ``max_episode_length`` policy steps."""
+        self.cfg, self.generator = cfg, generator
+        self.max_episode_length = max_episode_length
+        self.episode_length_buf = torch.zeros(num_envs, dtype=torch.long)
+        self.lived_steps = torch.zeros(num_envs, dtype=torch.long)
+
+    def initial_state(
+        self, env_ids: torch.Tensor, physics: Physics, components: Iterable[Component]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Draw the start of ``env_ids`` (M,): joint noise, heading and base velocity around the
+        keyframe, then the task's hook and its components' ``reset_state`` edit it in place.
+        Returns float64 ``qpos`` (M, 36) and ``qvel`` (M, 35)."""
+        init, gen, m = self.cfg, self.generator, env_ids.numel()
+        qpos = physics.stand_qpos.repeat(m, 1)
+        qvel = physics.stand_qvel.repeat(m, 1)
+        joint_noise = (2 * torch.rand(m, g1.NUM_JOINTS, generator=gen) - 1) * (
+            init.joint_pos_noise_rad
+        )
+        qpos[:, 7 : 7 + g1.NUM_JOINTS] += joint_noise.double()
+        if init.random_yaw:
+            yaw = (2 * torch.rand(m, generator=gen) - 1) * math.pi
+            yaw_quat = torch.stack(
+                [torch.cos(yaw / 2), torch.zeros(m), torch.zeros(m), torch.sin(yaw / 2)], dim=-1
+            )
+            qpos[:, 3:7] = quat_multiply(yaw_quat.double(), qpos[:, 3:7])
+        base_vel = (2 * torch.rand(m, 6, generator=gen) - 1) * init.base_vel_noise
+        qvel[:, 0:6] = base_vel.double()
+        if init.reset_state is not None:
+            init.reset_state(env_ids, qpos, qvel, gen)
+        for component in components:
+            component.reset_state(env_ids, qpos, qvel, gen)
+        return qpos, qvel
+
+    def restart(self, env_ids: torch.Tensor) -> None:
+        """Zero the counters of ``env_ids`` (M,)."""
+        self.episode_length_buf[env_ids] = 0
+        self.lived_steps[env_ids] = 0
+
+    def advance(self) -> None:
+        """Count one policy step."""
+        self.episode_length_buf += 1
+        self.lived_steps += 1
+
+    def time_outs(self, terminated: torch.Tensor) -> torch.Tensor:
+        """(N,) bool: episodes at their length that did not fail (``terminated`` (N,))."""
+        return (self.episode_length_buf >= self.max_episode_length) & ~terminated
+
+    def state_dict(self) -> dict[str, Any]:
+        """The counters."""
+        return {
+            "episode_length_buf": self.episode_length_buf.clone(),
+            "lived_steps": self.lived_steps.clone(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the counters."""
+        self.episode_length_buf = state["episode_length_buf"].clone()
+        self.lived_steps = state["lived_steps"].clone()

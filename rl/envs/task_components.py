@@ -1,0 +1,59 @@
+"""The live stateful parts of a task in the env: command generator, phase machine and skill
+measure (protocols in :mod:`rl.envs.components`), with the phase and command they produce."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import torch
+
+if TYPE_CHECKING:
+    from rl.envs.state import EnvState
+    from rl.envs.task_schema import TaskConfig
+
+
+class TaskComponents:
+    """Built once from the task's configs; ``phase`` (N,) long and ``command`` (N, C) are what
+    the last :meth:`update` gave (zeros before the first)."""
+
+    def __init__(
+        self, task: TaskConfig, num_envs: int, max_episode_length: int, generator: torch.Generator
+    ) -> None:
+        """Build the three components (they share the env's ``generator``)."""
+        self.command_gen = task.commands.build(num_envs, generator)
+        self.command = torch.zeros(num_envs, task.commands.dim)
+        self.phase_machine = task.phases.build(num_envs, generator)
+        self.skill = task.skill.build(max_episode_length)
+        self.phase = torch.zeros(num_envs, dtype=torch.long)
+        self.all = (self.command_gen, self.phase_machine, self.skill)
+
+    def update(self, state: EnvState, dt_s: float) -> None:
+        """Phase and command of the state after a step of ``dt_s`` [s] (0 after a reset)."""
+        self.phase = self.phase_machine.update(state)
+        self.command = self.command_gen.compute(state, dt_s)
+
+    def reset(self, env_ids: torch.Tensor) -> None:
+        """Every component's :meth:`reset` of ``env_ids`` (M,)."""
+        for component in self.all:
+            component.reset(env_ids)
+
+    def log(self) -> dict[str, float]:
+        """Every component's scalars of this step."""
+        return {key: value for component in self.all for key, value in component.log().items()}
+
+    def state_dict(self) -> dict[str, Any]:
+        """Phase, command and each component's state."""
+        return {
+            "phase": self.phase.clone(),
+            "command": self.command.clone(),
+            "command_gen": self.command_gen.state_dict(),
+            "phase_machine": self.phase_machine.state_dict(),
+            "skill": self.skill.state_dict(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        self.phase, self.command = state["phase"].clone(), state["command"].clone()
+        self.command_gen.load_state_dict(state["command_gen"])
+        self.phase_machine.load_state_dict(state["phase_machine"])
+        self.skill.load_state_dict(state["skill"])

@@ -1,0 +1,301 @@
+"""The typed config of a task (the env's schema): everything a skill adds to the generic G1 env.
+
+A task is one frozen :class:`TaskConfig` value (variants by :func:`dataclasses.replace`): its scene,
+initial-state distribution, pushes and randomisation ranges, observation terms per group, reward
+and termination terms, command generator, phase machine, skill measure and default assist bounds.
+:class:`rl.envs.G1VecEnv` evaluates these; it never branches on which task it runs. A new task is
+one module defining such a value plus a line in :mod:`rl.registry`.
+
+It lives beside the env, with the term types (:mod:`rl.envs.terms`) and the component protocols
+(:mod:`rl.envs.components`), so that ``rl.envs`` imports nothing from ``rl.tasks``; task modules
+import these names from :mod:`rl.tasks.config`, which re-exports them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import torch
+
+from rl.envs.components import NoCommandConfig, SinglePhaseConfig, SurvivalSkillConfig
+from rl.envs.terms import ObsGroup, RewardTerm, TerminationTerm, check_unique
+
+ResetStateFn = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Generator], None]
+"""``fn(env_ids (M,), qpos (M, 36), qvel (M, 35), generator)``: edit the float64 MuJoCo initial
+state of resetting envs in place (e.g. start from a reference frame)."""
+TerrainFn = Callable[[mujoco.MjSpec], None]
+"""``fn(spec)``: add terrain geoms to the physics spec (contype 1, conaffinity 3 like the floor)."""
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """What the robot stands on and which of its geoms collide."""
+
+    floor: bool = True  # a ground plane at z = 0
+    link_collisions: bool = True  # fitted capsules/boxes on the links collide with floor/terrain
+    terrain: TerrainFn | None = None  # adds terrain geoms to the spec; None: floor only
+
+
+@dataclass(frozen=True)
+class InitialStateConfig:
+    """The distribution of the state an episode starts from (around the standing keyframe)."""
+
+    joint_pos_noise_rad: float = 0.05  # uniform +- offset of each joint from the stand pose [rad]
+    base_vel_noise: float = 0.1  # uniform +- base linear [m/s] and angular [rad/s] velocity
+    random_yaw: bool = True  # uniform random base heading
+    reset_state: ResetStateFn | None = None  # task hook applied after the noise; None: none
+
+
+@dataclass(frozen=True)
+class PushConfig:
+    """Random pushes: horizontal base velocity kicks at random intervals."""
+
+    enabled: bool = True  # push the robots
+    interval_range_s: tuple[float, float] = (3.0, 6.0)  # time between two pushes [s]
+    velocity_xy_mps: float = 0.5  # largest +- horizontal base velocity change of a push [m/s]
+
+    def __post_init__(self) -> None:
+        low, high = self.interval_range_s
+        if not 0 < low <= high:
+            raise ValueError(
+                f"push interval_range_s must be (low, high) with 0 < low <= high, got {(low, high)}"
+            )
+
+
+@dataclass(frozen=True)
+class RandomizationConfig:
+    """Domain randomisation ranges, drawn per env (see ``model_groups`` for the memory trade)."""
+
+    enabled: bool = True  # randomise friction, payload and CoM offset
+    friction_range: tuple[float, float] = (0.4, 1.25)  # sole and floor sliding friction [-]
+    payload_mass_range_kg: tuple[float, float] = (-1.0, 3.0)  # mass added to the payload body [kg]
+    com_offset_range_m: tuple[float, float] = (-0.03, 0.03)  # payload-body CoM shift per axis [m]
+    payload_body: str = "torso_link"  # body receiving payload and CoM offset (MuJoCo name)
+    model_groups: int = 0  # 0: one model copy per env, redrawn at each reset; G > 0: G copies drawn once, env i uses copy i % G
+
+    def __post_init__(self) -> None:
+        for name in ("friction_range", "payload_mass_range_kg", "com_offset_range_m"):
+            low, high = getattr(self, name)
+            if low > high:
+                raise ValueError(f"randomization {name} must be (low, high), got {(low, high)}")
+        if self.friction_range[0] <= 0:
+            raise ValueError(f"randomization friction_range must be > 0, got {self.friction_range}")
+        if self.model_groups < 0:
+            raise ValueError(f"randomization model_groups must be >= 0, got {self.model_groups}")
+
+
+@dataclass(frozen=True)
+class ObservationsConfig:
+    """Observation terms of the three task-defined groups.
+
+    The env derives three more: ``policy_clean`` (the policy terms without noise), ``history``
+    (the last H noisy policy observations) and ``base_lin_vel`` (the VAE's velocity target).
+    """
+
+    policy: ObsGroup  # what the deployed motion policy reads (noisy)
+    privileged: ObsGroup  # what only the assist head (and critic) read in simulation
+    critic: ObsGroup  # the critic's full state
+
+
+@dataclass(frozen=True)
+class SkillTarget:
+    """What the motion policy *alone* (assistance off, fresh envs, one episode each) must reach
+    for the skill to count as learned: a survival share and, optionally, one task metric of the
+    task's evaluator at or below a bound."""
+
+    min_survival: float = 0.9  # share of evaluation episodes that must not fail [-]
+    metric: str = ""  # task evaluator metric bounded above (e.g. skill_error_rad); empty: none
+    max_metric: float = 0.0  # the metric's upper bound, in its unit
+
+    def reached(self, result: dict[str, Any]) -> bool:
+        """Whether an evaluation result (``survival_fraction``, ``task_metrics``) meets it."""
+        if result["survival_fraction"] < self.min_survival:
+            return False
+        if not self.metric:
+            return True
+        value = result.get("task_metrics", {}).get(self.metric)
+        return value is not None and value <= self.max_metric
+
+    def describe(self) -> str:
+        """One line, e.g. ``survival >= 0.9 and lin_vel_error_mps <= 0.25``."""
+        text = f"survival >= {self.min_survival:g}"
+        return text + (f" and {self.metric} <= {self.max_metric:g}" if self.metric else "")
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """One skill for the G1 env (see the module docstring)."""
+
+    name: str  # registry name [-]
+    description: str  # one line for ``a2cf-mb list-tasks``
+    observations: ObservationsConfig  # observation terms per group
+    rewards: tuple[RewardTerm, ...]  # weighted reward terms, each named once
+    terminations: tuple[TerminationTerm, ...]  # failure conditions
+    assist_bound: tuple[tuple[float, ...], ...]  # default eta0, one 6-D row per phase [N, Nm]
+    episode_length_s: float = 10.0  # episode duration before a time-out [s]
+    scene: SceneConfig = field(default_factory=SceneConfig)  # floor, terrain, colliding geoms
+    initial_state: InitialStateConfig = field(
+        default_factory=InitialStateConfig
+    )  # reset distribution
+    pushes: PushConfig = field(default_factory=PushConfig)  # random base kicks
+    randomization: RandomizationConfig = field(default_factory=RandomizationConfig)  # domain ranges
+    commands: Any = field(default_factory=NoCommandConfig)  # command generator config (has build)
+    phases: Any = field(
+        default_factory=SinglePhaseConfig
+    )  # phase machine config (has names, build)
+    skill: Any = field(default_factory=SurvivalSkillConfig)  # skill-progress config (has build)
+    less_assist_weight: float = 1.0  # weight of the less-assist reward once switched on [-]
+    evaluation: Any = (
+        None  # task-specific eval config (build(env) -> evaluator); None: generic eval
+    )
+    target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
+
+    def __post_init__(self) -> None:
+        check_unique("reward", self.rewards)
+        check_unique("termination", self.terminations)
+        for group in ("policy", "privileged", "critic"):
+            check_unique(f"{group} observation", getattr(self.observations, group).terms)
+        if self.episode_length_s <= 0:
+            raise ValueError(f"task episode_length_s must be > 0 s, got {self.episode_length_s}")
+        rows = self.assist_bound
+        if len(rows) != len(self.phase_names) or any(len(r) != 6 for r in rows):
+            raise ValueError(
+                f"task '{self.name}': assist_bound needs one 6-D row per phase "
+                f"({len(self.phase_names)} phases), got {rows}"
+            )
+
+    @property
+    def phase_names(self) -> tuple[str, ...]:
+        """Names of the task phases (one assist-bound row each)."""
+        return tuple(self.phases.names)
+
+    @property
+    def num_phases(self) -> int:
+        """Number of phases P."""
+        return len(self.phase_names)
+
+    def default_assist_bound(self) -> torch.Tensor:
+        """eta0 (P, 6) [N, Nm] when no oracle artifact gives one."""
+        return torch.tensor(self.assist_bound, dtype=torch.float32)
+
+    def with_reward_weights(self, weights: dict[str, float]) -> TaskConfig:
+        """A variant with some reward weights replaced (unknown names: a clear error)."""
+        names = {t.name for t in self.rewards}
+        unknown = sorted(set(weights) - names)
+        if unknown:
+            raise ValueError(
+                f"task '{self.name}' has no reward term {unknown}; its terms: {sorted(names)}"
+            )
+        return dataclasses.replace(
+            self,
+            rewards=tuple(
+                dataclasses.replace(t, weight=float(weights[t.name])) if t.name in weights else t
+                for t in self.rewards
+            ),
+        )
+
+    def with_term_params(self, params: dict[str, dict[str, Any]]) -> TaskConfig:
+        """A variant with term parameters replaced: ``{term_name: {param: value}}``.
+
+        Applies to reward, termination and observation terms of that name; a parameter the term
+        does not already have is refused (it would be silently ignored by nothing, or crash later).
+        """
+        found: set[str] = set()
+
+        def edit(term):
+            if term.name not in params:
+                return term
+            missing = sorted(set(params[term.name]) - set(term.params))
+            if missing:
+                raise ValueError(
+                    f"term '{term.name}' of task '{self.name}' has no parameter {missing}; "
+                    f"its parameters: {sorted(term.params)}"
+                )
+            found.add(term.name)
+            return dataclasses.replace(term, params={**term.params, **params[term.name]})
+
+        def group(g: ObsGroup) -> ObsGroup:
+            return dataclasses.replace(g, terms=tuple(edit(t) for t in g.terms))
+
+        obs = self.observations
+        variant = dataclasses.replace(
+            self,
+            rewards=tuple(edit(t) for t in self.rewards),
+            terminations=tuple(edit(t) for t in self.terminations),
+            observations=ObservationsConfig(
+                policy=group(obs.policy), privileged=group(obs.privileged), critic=group(obs.critic)
+            ),
+        )
+        unknown = sorted(set(params) - found)
+        if unknown:
+            raise ValueError(f"task '{self.name}' has no term named {unknown}")
+        return variant
+
+    def with_overrides(self, overrides: dict[str, Any]) -> TaskConfig:
+        """A variant from CLI-style changes (what ``TrainConfig.task_overrides`` stores):
+
+        - ``"reward_weights": {term: weight}`` (see :meth:`with_reward_weights`);
+        - ``"term_params": {term: {param: value}}`` (see :meth:`with_term_params`);
+        - ``"a.b": value``: the (nested) scalar field ``a.b``, e.g. ``"pushes.velocity_xy_mps"``.
+        """
+        task = self
+        for key, value in overrides.items():
+            if key == "reward_weights":
+                task = task.with_reward_weights(value)
+            elif key == "term_params":
+                task = task.with_term_params(value)
+            else:
+                task = _replace_path(task, key.split("."), value, key)
+        return task
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The resolved config as JSON-ready data (functions by their qualified name)."""
+        import json
+
+        def name_of(obj: Any) -> str:
+            if callable(obj):
+                return (
+                    f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
+                )
+            return repr(obj)
+
+        return json.loads(json.dumps(dataclasses.asdict(self), default=name_of))
+
+
+def _replace_path(obj: Any, path: list[str], value: Any, key: str) -> Any:
+    """``obj`` with the field at ``path`` (nested dataclasses) set to ``value``."""
+    names = {f.name for f in dataclasses.fields(obj)}
+    head = path[0]
+    if head not in names:
+        raise ValueError(
+            f"task override '{key}': {type(obj).__name__} has no field '{head}' "
+            f"(fields: {sorted(names)})"
+        )
+    if len(path) == 1:
+        current = getattr(obj, head)
+        if isinstance(current, tuple) and isinstance(value, list):
+            value = tuple(value)
+        return dataclasses.replace(obj, **{head: value})
+    child = getattr(obj, head)
+    if not dataclasses.is_dataclass(child):
+        raise ValueError(f"task override '{key}': '{head}' is not a nested config")
+    return dataclasses.replace(obj, **{head: _replace_path(child, path[1:], value, key)})
+
+
+def quiet(task: TaskConfig) -> TaskConfig:
+    """A variant whose physics depends only on the actions: no pushes, randomisation, reset
+    noise or observation noise (tests, debugging, deterministic replays)."""
+    obs = task.observations
+    return dataclasses.replace(
+        task,
+        pushes=dataclasses.replace(task.pushes, enabled=False),
+        randomization=dataclasses.replace(task.randomization, enabled=False),
+        initial_state=dataclasses.replace(
+            task.initial_state, joint_pos_noise_rad=0.0, base_vel_noise=0.0, random_yaw=False
+        ),
+        observations=dataclasses.replace(obs, policy=dataclasses.replace(obs.policy, noisy=False)),
+    )

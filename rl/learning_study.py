@@ -1,0 +1,137 @@
+"""Learning studies judged by the motion policy alone: env steps (and wall time) to the task's
+assistance-free target per run, mean and spread over seeds, and the curves behind them.
+
+Reads run folders only: the evaluations during training (``evals.jsonl``) or, for runs trained
+without them, ``a2cf-mb eval-curve``'s ``evals_checkpoints.jsonl``; the wall time per iteration
+from ``metrics.json`` (or, for a live run, the checkpoint's logger rows are not read: wall time is
+then the evaluation rows' order only). Used by ``a2cf-mb bench learn`` and ``docs/results``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from optimal_control.files import atomic_savefig, atomic_write_json
+from rl.alone_eval import curve_arrays
+from rl.run_folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE
+from rl.runner import load_run_config, resolve_task
+
+
+def read_evals(run_dir: Path) -> list[dict[str, Any]]:
+    """The run's alone-evaluation rows, oldest first (during-training rows preferred)."""
+    for name in (EVALS_LOG, CHECKPOINT_EVALS_LOG):
+        path = run_dir / name
+        if path.is_file() and path.stat().st_size:
+            rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+            return sorted(rows, key=lambda r: r["iteration"])
+    return []
+
+
+def _wall_s_at(run_dir: Path, iteration: int) -> float | None:
+    """Training wall time [s] of the first ``iteration`` iterations (metrics.json rows)."""
+    path = run_dir / METRICS_FILE
+    if not path.is_file():
+        return None
+    rows = json.loads(path.read_text()).get("iterations", [])
+    if len(rows) < iteration:
+        return None
+    return float(sum(r["iteration_time_s"] for r in rows[:iteration]))
+
+
+def run_summary(run_dir: str | Path) -> dict[str, Any]:
+    """One run: task, mode, seed, its evaluations and where it first reached the target."""
+    run_dir = Path(run_dir)
+    cfg = load_run_config(run_dir)
+    task = resolve_task(cfg)
+    rows = read_evals(run_dir)
+    first = next((r for r in rows if r["target_reached"]), None)
+    metric = task.target.metric
+    last = rows[-1] if rows else None
+    return {
+        "run": run_dir.name,
+        "task": cfg.task,
+        "mode": cfg.mode,
+        "seed": cfg.seed,
+        "num_envs": cfg.env.num_envs,
+        "target": task.target.describe(),
+        "metric": metric,
+        "evaluations": len(rows),
+        "evaluated_env_steps": last["env_steps"] if last else 0,
+        "reached_at_env_steps": first["env_steps"] if first else None,
+        "reached_at_iteration": first["iteration"] if first else None,
+        "reached_at_wall_s": _wall_s_at(run_dir, first["iteration"]) if first else None,
+        "last_survival": last["survival_fraction"] if last else None,
+        "last_metric": last.get("task_metrics", {}).get(metric) if last and metric else None,
+        "best_survival": max((r["survival_fraction"] for r in rows), default=None),
+    }
+
+
+def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, Any]:
+    """Per run and per (task, mode): env steps to the assistance-free target (mean, spread over
+    seeds, runs that never reached it counted as not reached); ``study.json`` and ``study.png``
+    (survival and the task metric against env steps) in ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = [run_summary(d) for d in run_dirs]
+    groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for r in runs:
+        groups[f"{r['task']} {r['mode']}"].append(r)
+    table = []
+    for name, members in groups.items():
+        reached = [m["reached_at_env_steps"] for m in members if m["reached_at_env_steps"]]
+        table.append(
+            {
+                "group": name,
+                "seeds": [m["seed"] for m in members],
+                "reached": f"{len(reached)}/{len(members)}",
+                "env_steps_to_target_mean": float(np.mean(reached)) if reached else None,
+                "env_steps_to_target_std": float(np.std(reached)) if reached else None,
+                "env_steps_to_target": [m["reached_at_env_steps"] for m in members],
+                "evaluated_env_steps": [m["evaluated_env_steps"] for m in members],
+                "last_survival": [m["last_survival"] for m in members],
+                "last_metric": [m["last_metric"] for m in members],
+            }
+        )
+    result = {"runs": runs, "groups": table}
+    atomic_write_json(out / "study.json", result)
+    _plot([Path(d) for d in run_dirs], runs, out / "study.png")
+    return result
+
+
+def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metrics = sorted({r["metric"] for r in runs if r["metric"]})
+    fig, axes = plt.subplots(1, 1 + len(metrics), figsize=(5 * (1 + len(metrics)), 3.8))
+    axes = np.atleast_1d(axes)
+    for run_dir, run in zip(run_dirs, runs, strict=True):
+        rows = read_evals(run_dir)
+        label = f"{run['task']} {run['mode']} s{run['seed']}"
+        x, y = curve_arrays(rows, "survival_fraction")
+        axes[0].plot(x / 1e6, y, marker=".", label=label)
+        if run["metric"]:
+            ax = axes[1 + metrics.index(run["metric"])]
+            x, y = curve_arrays(rows, run["metric"])
+            ax.plot(x / 1e6, y, marker=".", label=label)
+    axes[0].set_ylabel("survival alone (assistance off)")
+    axes[0].set_ylim(-0.02, 1.02)
+    for ax, metric in zip(axes[1:], metrics, strict=True):
+        ax.set_ylabel(metric)
+        target = next(r["target"] for r in runs if r["metric"] == metric)
+        bound = float(target.rsplit("<=", 1)[1])
+        ax.axhline(bound, color="k", ls="--", lw=0.8)
+    for ax in axes:
+        ax.set_xlabel("env steps [M]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=100)
+    plt.close(fig)

@@ -1,0 +1,252 @@
+"""The run folder's file names, and the lock that lets one process at a time write a run folder.
+
+The names are defined here once; :mod:`rl.runner` (which writes a run folder, and re-exports them),
+:mod:`rl.compare`, :mod:`rl.sim2sim`, :mod:`a2cf_mb.demo` and the benchmarks import them. This
+module imports nothing heavy, so readers of a run folder need not load torch or the env.
+
+:class:`RunFolderLock` holds ``<run folder>/run.lock`` while a run is trained or resumed. The file
+is created with ``O_CREAT | O_EXCL`` (of two processes, exactly one creates it) and names its
+holder: pid, host, start time and command line. A second process is refused with
+:class:`RunFolderBusyError`, one line naming the holder and what to do. A lock whose holder is gone
+(its pid is no longer alive on this host, or the pid now belongs to a later process) is stale: it
+is taken over with a :class:`StaleLockWarning`. A lock written on another host cannot be checked
+and is respected. The lock is removed when the run ends (or fails); a SIGKILL leaves it behind,
+which the next run then recognises as stale.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+import socket
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path, PurePath
+from typing import NoReturn
+
+from optimal_control.files import process_alive
+
+CONFIG_FILE = "config.json"
+"""Resolved TrainConfig, the resolved task, env config, rsl-rl config and eta0."""
+GIT_FILE = "git.json"
+"""Git revision and dirty flag of the project."""
+CHECKPOINT_DIR = "checkpoints"
+"""Folder of ``last.pt`` and the kept ``model_<completed iterations>.pt``."""
+LAST_CHECKPOINT = "last.pt"
+"""The checkpoint written after every iteration (atomically); a resume starts from it."""
+CURRICULUM_LOG = "curriculum.jsonl"
+"""One line per curriculum update: bounds, applied wrench, switches."""
+METRICS_FILE = "metrics.json"
+"""Per-iteration figures and the run summary, written when the run ends."""
+WARMSTART_FILE = "warmstart.json"
+"""Report of the warm start (``--warmstart`` / ``--warmstart-motion``)."""
+POLICY_FILE = "policy.onnx"
+"""The exported motion policy."""
+POLICY_BUNDLE_FILE = str(PurePath(POLICY_FILE).with_suffix(".json"))
+"""The deployment bundle :func:`rl.export.export_motion_policy` writes beside the ONNX file."""
+EVAL_FILE = "eval.json"
+"""Result of ``a2cf-mb eval``."""
+EVENTS_GLOB = "events.out.tfevents*"
+"""TensorBoard event files (rsl-rl's logger names them)."""
+LOCK_FILE = "run.lock"
+"""Present while a process writes the run folder (see :class:`RunFolderLock`)."""
+EVALS_LOG = "evals.jsonl"
+"""Evaluations of the motion policy alone during training, one JSON line each."""
+CHECKPOINT_EVALS_LOG = "evals_checkpoints.jsonl"
+"""``a2cf-mb eval-curve``'s evaluations of the kept checkpoints, one JSON line each."""
+EVALS_DIR = "evals"
+"""Folder of the task evaluator's latest figures from the evaluations during training."""
+
+UNREADABLE_LOCK_GRACE_S = 10.0
+"""An empty or unreadable lock younger than this belongs to a process still writing it; an older
+one was left by a process killed between creating and writing it, and is stale [s]."""
+
+
+class RunFolderBusyError(RuntimeError):
+    """Another live process holds the run folder's lock (the CLI prints it in one line, exit 2)."""
+
+
+class StaleLockWarning(UserWarning):
+    """A lock left by a process that no longer runs was taken over."""
+
+
+@dataclass(frozen=True)
+class LockHolder:
+    """What a lock file says about the process holding it."""
+
+    pid: int  # process id on ``host``
+    host: str  # host name of the process
+    started_utc: str  # when the lock was taken, ISO 8601 UTC
+    command: str  # the holder's command line (shortened)
+    process: str | None = None  # boot id and start tick of ``pid`` (Linux); detects pid reuse
+
+    def describe(self) -> str:
+        """``pid 123 on host h since 2026-01-02 03:04:05 UTC (a2cf-mb train ...)``."""
+        since = self.started_utc.replace("T", " ").removesuffix("Z")
+        return f"pid {self.pid} on host {self.host} since {since} UTC ({self.command})"
+
+
+def _process_identity(pid: int) -> str | None:
+    """Boot id and start time (clock ticks since boot) of ``pid``: two processes that share a pid
+    at different times have different identities. None where ``/proc`` cannot tell."""
+    try:
+        boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat[stat.rindex(")") + 2 :].split()  # after "pid (comm) "; comm may hold spaces
+    return f"{boot}:{fields[19]}"  # field 22 of proc(5): starttime
+
+
+def _command_line() -> str:
+    """This process's command line, shortened, as a person would recognise it."""
+    argv0 = Path(sys.argv[0] if sys.argv and sys.argv[0] else "python")
+    if argv0.name == "a2cf-mb" or argv0.parent.name == "a2cf_mb":  # script or python -m a2cf_mb
+        name = "a2cf-mb"
+    else:
+        name = argv0.name if not argv0.name.startswith("-") else f"python {argv0.name}"
+    text = " ".join([name, *sys.argv[1:]])
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def _read_holder(path: Path) -> LockHolder | None:
+    """The holder named in a lock file; None when it is empty or unreadable."""
+    try:
+        holder = LockHolder(**json.loads(path.read_text()))
+    except (OSError, ValueError, TypeError):
+        return None
+    return holder if isinstance(holder.pid, int) and holder.pid > 0 else None
+
+
+class RunFolderLock:
+    """Exclusive right of this process to write ``run_dir`` (a context manager).
+
+    Entering creates the folder where missing (``create``) and the lock file; leaving removes the
+    lock, and the folders it created if nothing was written into them (a run that fails before
+    its first file leaves no empty run folder). Under ``torchrun`` every process of the job trains
+    into the same folder: rank 0 holds the lock for the job, the other ranks take none.
+
+    Raises (on entering) :class:`RunFolderBusyError` when a live process holds the lock, and
+    :class:`FileNotFoundError` when ``create`` is False and the folder does not exist.
+    """
+
+    def __init__(self, run_dir: str | Path, create: bool = True) -> None:
+        """Lock ``run_dir``; ``create``: make the folder (and its parents) where missing."""
+        self.run_dir = Path(run_dir)
+        self.path = self.run_dir / LOCK_FILE
+        self.create = create
+        self.holder: LockHolder | None = None  # this process's entry while held
+        self._created: list[Path] = []  # folders made by acquire, innermost first
+
+    def __enter__(self) -> RunFolderLock:
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    def acquire(self) -> None:
+        """Take the lock (see the class docstring); a stale lock is taken over with a warning."""
+        if int(os.environ.get("RANK", "0")) != 0:
+            return  # a torchrun job: rank 0 holds the lock for all its processes
+        if not self.run_dir.is_dir():
+            if not self.create:
+                raise FileNotFoundError(errno.ENOENT, "No such run folder", str(self.run_dir))
+            missing = [p for p in (self.run_dir, *self.run_dir.parents) if not p.exists()]
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            self._created = missing
+        me = LockHolder(
+            pid=os.getpid(),
+            host=socket.gethostname(),
+            started_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            command=_command_line(),
+            process=_process_identity(os.getpid()),
+        )
+        data = json.dumps(asdict(me)).encode()
+        for _ in range(3):  # a takeover can lose the race to another process; then it is refused
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                self._take_over_if_stale()
+                continue
+            try:
+                os.write(fd, data)  # one write: a reader sees all of it or an empty file
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            self.holder = me
+            return
+        self._refuse(_read_holder(self.path))
+
+    def release(self) -> None:
+        """Remove the lock if this process still holds it, then the empty folders it made."""
+        if self.holder is not None:
+            if _read_holder(self.path) == self.holder:
+                self.path.unlink(missing_ok=True)
+            self.holder = None
+        for folder in self._created:
+            try:
+                folder.rmdir()  # only succeeds when empty
+            except OSError:
+                break
+        self._created = []
+
+    def _take_over_if_stale(self) -> None:
+        """Remove the existing lock when its holder is gone, else raise RunFolderBusyError."""
+        try:
+            text = self.path.read_text()
+            age_s = time.time() - self.path.stat().st_mtime
+        except FileNotFoundError:
+            return  # released meanwhile: try to create it again
+        holder = _read_holder(self.path)
+        if holder is None:
+            if age_s < UNREADABLE_LOCK_GRACE_S:
+                self._refuse(None)
+            reason = f"an unreadable lock {age_s:.0f} s old"
+        else:
+            reason = self._stale_reason(holder)
+            if reason is None:
+                self._refuse(holder)
+        # Move the lock aside and check it is the one judged stale: of two processes taking over
+        # the same stale lock, the second must not delete the lock the first has just created.
+        aside = self.path.with_name(f".{LOCK_FILE}.stale-{os.getpid()}")
+        try:
+            os.rename(self.path, aside)
+        except FileNotFoundError:
+            return
+        if aside.read_text() != text:
+            with contextlib.suppress(FileExistsError):
+                os.link(aside, self.path)  # put the other process's fresh lock back
+            aside.unlink()
+            return
+        aside.unlink()
+        warnings.warn(
+            f"{self.path} was left by {reason}; taking the run folder over",
+            StaleLockWarning,
+            stacklevel=4,
+        )
+
+    @staticmethod
+    def _stale_reason(holder: LockHolder) -> str | None:
+        """Why the holder is gone (None: it runs, or it runs on another host and cannot be
+        checked)."""
+        if holder.host != socket.gethostname():
+            return None
+        if not process_alive(holder.pid):
+            return f"pid {holder.pid}, which no longer runs"
+        now = _process_identity(holder.pid)
+        if holder.process is not None and now is not None and now != holder.process:
+            return f"pid {holder.pid}, which has ended (the pid now belongs to another process)"
+        return None
+
+    def _refuse(self, holder: LockHolder | None) -> NoReturn:
+        who = holder.describe() if holder else "a process that is creating its lock right now"
+        raise RunFolderBusyError(
+            f"run folder {self.run_dir} is being written by {who}: one process at a time may "
+            "write a run folder; wait for that run to end or stop it, or write into another "
+            f"folder (--run-name, --out); if that process has ended, delete {self.path}"
+        )

@@ -1,0 +1,83 @@
+"""Judging by the policy alone during training: evaluations that leave training bit-identical,
+survive a resume, agree with the checkpoint evaluations, and feed the learning study."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+import torch
+from test_training import read_jsonl, tiny_config
+
+from rl.alone_eval import AloneEvalConfig
+from rl.evaluate import evaluate_checkpoints
+from rl.learning_study import summarise_study
+from rl.run_folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
+from rl.runner import train
+from rl.tasks.config import SkillTarget
+
+EVAL = AloneEvalConfig(interval=1, num_envs=3, seed=7)
+
+
+def test_evaluations_during_training_leave_training_bit_identical(tmp_path) -> None:
+    with_eval = train(tiny_config(tmp_path, "a2cf", run_name="with", eval=EVAL), verbose=False)
+    without = train(
+        tiny_config(tmp_path, "a2cf", run_name="without", eval=AloneEvalConfig(interval=0)),
+        verbose=False,
+    )
+    a = torch.load(with_eval.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    b = torch.load(without.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    for key, value in a["actor_state_dict"].items():
+        assert torch.equal(value, b["actor_state_dict"][key]), key
+    rows = read_jsonl(with_eval.run_dir / EVALS_LOG)
+    assert [r["iteration"] for r in rows] == [1, 2]
+    assert [r["env_steps"] for r in rows] == [32, 64]  # 4 envs x 8 steps per iteration
+    for row in rows:
+        assert 0.0 <= row["survival_fraction"] <= 1.0
+        assert row["num_envs"] == 3 and row["target"] == "survival >= 0.9"
+    assert a["alone_eval"] == rows  # in the checkpoint: a resume keeps them
+    assert with_eval.metrics["alone_evaluations"] == rows
+    assert not (without.run_dir / EVALS_LOG).exists()
+
+
+def test_a_resumed_run_keeps_and_extends_its_evaluations(tmp_path) -> None:
+    first = train(tiny_config(tmp_path, "baseline", eval=EVAL), verbose=False)
+    before = read_jsonl(first.run_dir / EVALS_LOG)
+    resumed = train(
+        dataclasses.replace(
+            tiny_config(tmp_path, "baseline"), resume=str(first.run_dir), iterations=3
+        ),
+        verbose=False,
+    )
+    after = read_jsonl(resumed.run_dir / EVALS_LOG)
+    assert after[:2] == before and [r["iteration"] for r in after] == [1, 2, 3]
+
+
+def test_checkpoint_evaluations_equal_the_ones_during_training(tmp_path) -> None:
+    run = train(tiny_config(tmp_path, "baseline", eval=EVAL), verbose=False)
+    during = read_jsonl(run.run_dir / EVALS_LOG)
+    after = evaluate_checkpoints(run.run_dir, EVAL, progress=False)
+    assert [r["iteration"] for r in after] == [1, 2]
+    for a, b in zip(during, after, strict=True):
+        for key in ("survival_fraction", "mean_return", "mean_episode_length_steps", "env_steps"):
+            assert a[key] == b[key], key
+    study = summarise_study([run.run_dir], tmp_path / "study")
+    (group,) = study["groups"]
+    assert group["group"] == "stand baseline" and group["seeds"] == [0]
+    assert json.loads((tmp_path / "study" / "study.json").read_text()) == study
+    assert (tmp_path / "study" / "study.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("target", "survival", "metrics", "reached"),
+    [
+        (SkillTarget(), 0.9, {}, True),
+        (SkillTarget(), 0.89, {}, False),
+        (SkillTarget(0.0, "skill_error_rad", 0.16), 0.1, {"skill_error_rad": 0.15}, True),
+        (SkillTarget(0.0, "skill_error_rad", 0.16), 1.0, {"skill_error_rad": 0.17}, False),
+        (SkillTarget(0.9, "lin_vel_error_mps", 0.25), 0.95, {}, False),  # metric missing
+    ],
+)
+def test_skill_target(target, survival, metrics, reached) -> None:
+    assert target.reached({"survival_fraction": survival, "task_metrics": metrics}) is reached

@@ -1,0 +1,139 @@
+"""One process at a time writes a run folder: a second `train` (new run or `--resume`) is refused
+in one line naming the holder, exit 2; a lock left by a killed process is taken over."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_training import tiny_config
+
+from a2cf_mb.cli import DEBUG_ENV, main
+from rl.run_folder import (
+    CONFIG_FILE,
+    LOCK_FILE,
+    METRICS_FILE,
+    RunFolderBusyError,
+    RunFolderLock,
+    StaleLockWarning,
+    _process_identity,
+)
+from rl.runner import train
+from rl.train_config import TrainConfig
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+HOLD = """
+import sys, time
+from rl.run_folder import RunFolderLock
+with RunFolderLock(sys.argv[1]):
+    print("held", flush=True)
+    time.sleep(600)
+"""
+
+
+def _holder(run: Path) -> subprocess.Popen:
+    """Another process that holds the lock of ``run`` until killed."""
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(run)], stdout=subprocess.PIPE, text=True, env=env
+    )
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
+    return proc
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()  # reaped: the pid belongs to no process now
+    return proc.pid
+
+
+def _write_lock(run: Path, pid: int, host: str | None = None, process: str | None = None) -> Path:
+    run.mkdir(parents=True, exist_ok=True)
+    entry = {"pid": pid, "host": host or socket.gethostname(), "command": "a2cf-mb train",
+             "started_utc": "2026-01-02T03:04:05Z", "process": process}  # fmt: skip
+    (run / LOCK_FILE).write_text(json.dumps(entry))
+    return run / LOCK_FILE
+
+
+def test_a_second_process_is_refused_in_one_line_naming_the_holder(
+    tmp_path, capsys, monkeypatch
+) -> None:
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    run = tmp_path / "busy"
+    holder = _holder(run)
+    try:
+        lock_before = (run / LOCK_FILE).read_text()
+        tiny = ["--num-envs", "4", "--num-steps-per-env", "8", "--iterations", "1"]
+        assert main(["train", "--out", str(tmp_path), "--run-name", "busy", *tiny]) == 2
+        # --resume of the run that is still training: refused before reading or writing anything
+        config = {"train": TrainConfig(run_name="busy", out=str(tmp_path)).to_dict()}
+        (run / CONFIG_FILE).write_text(json.dumps(config))
+        assert main(["train", "--resume", str(run)]) == 2
+        lines = capsys.readouterr().err.splitlines()
+        assert len(lines) == 2, lines
+        for line in lines:
+            assert line.startswith("a2cf-mb train: error: run folder") and "Traceback" not in line
+            assert f"pid {holder.pid} on host {socket.gethostname()} since " in line, line
+            assert "wait for that run to end" in line and str(run / LOCK_FILE) in line, line
+        assert (run / LOCK_FILE).read_text() == lock_before  # the holder keeps its lock
+        assert sorted(p.name for p in run.iterdir()) == [CONFIG_FILE, LOCK_FILE]
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_lock_left_by_a_killed_process_is_taken_over(tmp_path) -> None:
+    cfg = tiny_config(tmp_path, "baseline", iterations=1, export_onnx=False)
+    run = tmp_path / cfg.run_name
+    holder = _holder(run)
+    holder.send_signal(signal.SIGKILL)
+    holder.wait()
+    assert json.loads((run / LOCK_FILE).read_text())["pid"] == holder.pid  # left behind
+    with pytest.warns(StaleLockWarning, match=f"left by pid {holder.pid}, which"):
+        result = train(cfg, verbose=False)
+    assert result.iterations_done == 1 and (run / METRICS_FILE).is_file()
+    assert not (run / LOCK_FILE).exists()  # released at the end
+
+
+def test_the_lock_names_its_holder_and_leaves_no_empty_folder(tmp_path) -> None:
+    run = tmp_path / "out" / "run"
+    with RunFolderLock(run):
+        entry = json.loads((run / LOCK_FILE).read_text())
+        assert entry["pid"] == os.getpid() and entry["host"] == socket.gethostname()
+        assert entry["started_utc"].endswith("Z")
+        with pytest.raises(RunFolderBusyError, match=f"pid {os.getpid()}"):
+            RunFolderLock(run).acquire()  # the same process twice
+    assert not (tmp_path / "out").exists()  # made for the run, nothing written: removed
+    with RunFolderLock(run):
+        (run / CONFIG_FILE).write_text("{}")
+    assert sorted(p.name for p in run.iterdir()) == [CONFIG_FILE]
+    with pytest.raises(FileNotFoundError, match="No such run folder"):
+        RunFolderLock(tmp_path / "missing", create=False).acquire()
+
+
+def test_only_locks_of_ended_processes_are_taken_over(tmp_path) -> None:
+    run = tmp_path / "run"
+    live = os.getppid()
+    _write_lock(run, live)
+    with pytest.raises(RunFolderBusyError, match=f"pid {live} on host"):
+        RunFolderLock(run).acquire()
+    _write_lock(run, _dead_pid(), host="another-host")  # cannot be checked from here
+    with pytest.raises(RunFolderBusyError, match="on host another-host"):
+        RunFolderLock(run).acquire()
+    (run / LOCK_FILE).write_text("")  # a process between creating and writing its lock
+    with pytest.raises(RunFolderBusyError, match="creating its lock"):
+        RunFolderLock(run).acquire()
+    os.utime(run / LOCK_FILE, (0, 0))  # ... or one killed there long ago
+    with pytest.warns(StaleLockWarning, match="unreadable lock"), RunFolderLock(run):
+        pass
+    if _process_identity(os.getpid()) is not None:  # Linux: a reused pid is no holder
+        _write_lock(run, live, process="another-boot:1")
+        with pytest.warns(StaleLockWarning, match="belongs to another process"), RunFolderLock(run):
+            assert json.loads((run / LOCK_FILE).read_text())["pid"] == os.getpid()
+    assert not run.exists() or not (run / LOCK_FILE).exists()
