@@ -154,12 +154,16 @@ def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
 
 
 def evaluate_checkpoints(
-    run_dir: str | Path, cfg: AloneEvalConfig = AloneEvalConfig(), progress: bool = True
+    run_dir: str | Path,
+    cfg: AloneEvalConfig = AloneEvalConfig(),
+    progress: bool = True,
+    every_iterations: int = 1,
 ) -> list[dict[str, Any]]:
     """Evaluate the motion policy alone at every kept checkpoint ``model_<k>.pt`` of a run, as the
     evaluations during training do (same envs, seed and scores), and write the rows to
     ``evals_checkpoints.jsonl`` (checkpoints already in it are not evaluated again). For runs
-    trained without evaluations, or to evaluate more envs."""
+    trained without evaluations, or to evaluate more envs. ``every_iterations``: only checkpoints
+    whose iteration is a multiple of it."""
     from optimal_control.files import atomic_write_text
 
     run_dir = Path(run_dir)
@@ -176,7 +180,7 @@ def evaluate_checkpoints(
         raise ValueError(f"{run_dir} has no kept checkpoint (checkpoints/model_<k>.pt) to evaluate")
     steps_per_iteration = train_cfg.env.num_envs * train_cfg.num_steps_per_env
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
-    todo = [(k, p) for k, p in checkpoints if k not in done]
+    todo = [(k, p) for k, p in checkpoints if k not in done and k % every_iterations == 0]
     for i, (k, ckpt) in enumerate(todo):
         env = G1VecEnv(env_cfg, task)
         try:

@@ -34,11 +34,11 @@ class LearnBenchConfig:
     task: str = "stand"  # registered task [-]
     modes: tuple[str, ...] = ("baseline", "a2cf")  # training modes compared [-]
     seeds: tuple[int, ...] = (0, 1, 2)  # seeds, one run per mode and seed [-]
-    num_envs: int = 512  # parallel envs per run [-]
+    num_envs: int = 128  # parallel envs per run [-]
     num_steps_per_env: int = 24  # rollout length per iteration [-]
-    iterations: int = 250  # learning iterations per run [-]
+    iterations: int = 977  # learning iterations per run (3 M env steps at 128 x 24) [-]
     num_threads: int = 0  # physics threads; 0 = all cores [-]
-    eval_interval: int = 10  # iterations between two evaluations of the policy alone [-]
+    eval_interval: int = 40  # iterations between two evaluations of the policy alone [-]
     eval_envs: int = 32  # fresh envs of each evaluation of the policy alone [-]
     levels: tuple[float, ...] = (
         1.0,

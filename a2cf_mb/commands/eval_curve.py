@@ -18,6 +18,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("run_dir", help="run folder written by `a2cf-mb train`")
     add_config_arguments(parser, AloneEvalConfig)
+    parser.add_argument(
+        "--every-iterations",
+        type=int,
+        default=1,
+        help="evaluate only checkpoints whose iteration is a multiple of this (default: 1, all)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -27,7 +33,13 @@ def run(args: argparse.Namespace) -> int:
     from rl.evaluate import evaluate_checkpoints
     from rl.run_folder import CHECKPOINT_EVALS_LOG
 
-    rows = evaluate_checkpoints(args.run_dir, config_from_args(AloneEvalConfig, args))
+    if args.every_iterations < 1:
+        raise ValueError(f"--every-iterations must be >= 1, got {args.every_iterations}")
+    rows = evaluate_checkpoints(
+        args.run_dir,
+        config_from_args(AloneEvalConfig, args),
+        every_iterations=args.every_iterations,
+    )
     first = next((r for r in rows if r["target_reached"]), None)
     where = (
         f"reached at iteration {first['iteration']} ({first['env_steps']:,} env steps)"
