@@ -36,7 +36,11 @@ T = TypeVar("T")
 GIVEN = "_given_flags"
 """Namespace attribute: the set of ``dest`` names the user gave on the command line."""
 
-SHORT_FLAGS: dict[str, str] = {"env.num_envs": "--num-envs", "env.seed": "--seed"}
+SHORT_FLAGS: dict[str, str] = {
+    "env.num_envs": "--num-envs",
+    "env.seed": "--seed",
+    "env.backend": "--backend",
+}
 """dest -> the flag Isaac Lab and mjlab users type for it, accepted beside the long flag (both set
 the same dest; ``--help`` lists both). A top-level field already has the short form
 (``--device``)."""

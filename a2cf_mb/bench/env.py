@@ -11,6 +11,10 @@ For each batch size N the same run measures, interleaved and best of ``repeats``
   env's model, one long rollout of N robots holding the stand targets (no Python round trip).
 Reported as env steps/s (policy steps of all envs per second) and the ratios env / physics and
 env / sim.
+
+With ``--backends mujoco warp`` the same run also measures the env on MuJoCo Warp (the ``gpu``
+extra, on ``--device``): ``env`` as above and ``physics`` as ``WarpPhysics.step`` alone with the
+last controls held (:func:`measure_warp_size`), and reports warp / mujoco for each N.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from mujoco import rollout
 
 from a2cf_mb.bench import register_benchmark
 from a2cf_mb.bench.sim import SimBenchConfig, _rollout_rate
+from rl.envs.config import BACKENDS
 from rl.envs.model import CONTROL_SPEC
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task, make_env
@@ -50,6 +55,8 @@ class EnvBenchConfig:
         "off",
     )  # link collision primitives: on, off or both [-]
     output: str = ""  # optional json file for the figures
+    backends: tuple[str, ...] = ("mujoco",)  # physics backends to measure: mujoco and/or warp
+    device: str = "cpu"  # Warp device of the warp backend: cpu, cuda or cuda:N
 
 
 CHUNK = 5
@@ -162,22 +169,82 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = Tru
     return figures
 
 
+def measure_warp_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = True) -> dict:
+    """Figures for one batch size on MuJoCo Warp (``cfg.device``): ``env`` (``G1VecEnv.step``,
+    everything included) and ``physics`` (``WarpPhysics.step`` alone, controls held), timed in
+    alternating chunks, best of ``repeats``. The first step compiles or loads Warp's kernels and
+    is not timed."""
+    task = get_task(cfg.task)
+    task = dataclasses.replace(
+        task, scene=dataclasses.replace(task.scene, link_collisions=link_collisions)
+    )
+    env = make_env(task, num_envs, backend="warp", device=cfg.device, seed=cfg.seed)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    physics = env.physics
+    try:
+        env.step(_random_actions(env, cfg, generator))
+    except ValueError as err:
+        env.close()
+        if link_collisions or "no ground-contact sensor" not in str(err):
+            raise
+        return {"skipped": f"task '{cfg.task}' needs the link collision primitives ({err})"}
+    for _ in range(cfg.warmup_steps):
+        env.step(_random_actions(env, cfg, generator))
+    env_rate = physics_rate = 0.0
+    for _ in range(cfg.repeats):
+        env_s = physics_s = 0.0
+        for _ in range(0, cfg.num_steps, CHUNK):
+            env_s += _time_env(env, [_random_actions(env, cfg, generator) for _ in range(CHUNK)])
+            start = time.perf_counter()
+            for _ in range(CHUNK):
+                physics.step()  # synchronises: the divergence check reads the state on the host
+            physics_s += time.perf_counter() - start
+        steps = num_envs * CHUNK * len(range(0, cfg.num_steps, CHUNK))
+        env_rate = max(env_rate, steps / env_s)
+        physics_rate = max(physics_rate, steps / physics_s)
+    figures = {
+        "device": str(physics.device),
+        "env_steps_per_s": env_rate,
+        "physics_env_steps_per_s": physics_rate,
+        "env_over_physics": env_rate / physics_rate,
+        "diverged_envs": env.diverged_total,
+    }
+    env.close()
+    return figures
+
+
 def run_env_benchmark(cfg: EnvBenchConfig = EnvBenchConfig()) -> dict:
-    """Measure env and physics-only rates for each batch size (and link-collision setting)."""
+    """Measure env and physics-only rates for each batch size (and link-collision setting and
+    backend); with both backends, each size also gets the warp / mujoco ratios."""
     for value in cfg.link_collisions:
         if value not in ("on", "off"):
             raise ValueError(f"bench env --link-collisions takes on and/or off, got '{value}'")
+    for value in cfg.backends:
+        if value not in BACKENDS:
+            raise ValueError(
+                f"bench env --backends takes {' and/or '.join(BACKENDS)}, got '{value}'"
+            )
+    sizes: dict = {}
+    for n in cfg.num_envs:
+        for lc in cfg.link_collisions:
+            key = f"{n} links {lc}"
+            if "mujoco" in cfg.backends:
+                sizes[key] = measure_size(n, cfg, link_collisions=lc == "on")
+            if "warp" in cfg.backends:
+                sizes[f"{key} warp"] = warp = measure_warp_size(n, cfg, link_collisions=lc == "on")
+                c = sizes.get(key, {})
+                if "env_steps_per_s" in c and "env_steps_per_s" in warp:
+                    warp["env_over_mujoco_env"] = warp["env_steps_per_s"] / c["env_steps_per_s"]
+                    warp["physics_over_mujoco_physics"] = (
+                        warp["physics_env_steps_per_s"] / c["physics_env_steps_per_s"]
+                    )
     results: dict = {
         "config": dataclasses.asdict(cfg),
         "mujoco": mujoco.__version__,
         "torch_threads": torch.get_num_threads(),
-        "sizes": {
-            f"{n} links {lc}": measure_size(n, cfg, link_collisions=lc == "on")
-            for n in cfg.num_envs
-            for lc in cfg.link_collisions
-        },
+        "sizes": sizes,
     }
-    measured = [r for r in results["sizes"].values() if "skipped" not in r]
+    measured = [r for r in results["sizes"].values() if "threads" in r]
     results["threads"] = measured[0]["threads"] if measured else cfg.num_threads
     return results
 
@@ -193,6 +260,18 @@ def format_results(results: dict) -> str:
     for n, r in results["sizes"].items():
         if "skipped" in r:
             lines.append(f"  {n:>18} skipped: {r['skipped']}")
+            continue
+        if "device" in r:  # MuJoCo Warp
+            vs = ""
+            if "env_over_mujoco_env" in r:
+                vs = (
+                    f"  warp/mujoco: env {r['env_over_mujoco_env']:.2f}, "
+                    f"physics {r['physics_over_mujoco_physics']:.2f}"
+                )
+            lines.append(
+                f"  {n:>18} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "
+                f"{'-':>9}  {r['env_over_physics']:>11.2f}  ({r['device']}){vs}"
+            )
             continue
         lines.append(
             f"  {n:>18} {r['env_steps_per_s']:>9.0f} {r['physics_env_steps_per_s']:>9.0f} "

@@ -7,8 +7,8 @@ array of ``mjSTATE_FULLPHYSICS`` rows. Each policy step makes *one* call of a pe
 per-env ``MjModel`` copies (domain randomisation) and a control array holding the 29 joint targets
 and the pelvis ``xfrc_applied``. The torch tensors the env reads and edits view the same memory.
 
-A GPU backend (MuJoCo Warp) implements the same interface on device tensors; the env's parts, the
-tasks and their terms stay as they are.
+MuJoCo Warp (:class:`rl.envs.warp_physics.WarpPhysics`, the ``gpu`` extra) implements the same
+interface on Warp's CPU or CUDA device; the env's parts, the tasks and their terms stay as they are.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ class Physics(Protocol):
     """N G1 robots stepped together; every tensor has a leading env axis N.
 
     ``qpos`` (N, 36) [p_w, quat_w wxyz, 29 joints] and ``qvel`` (N, 35) [v_w, omega_b, 29 joint
-    rates] are float64 views of the simulator's state: writing into them edits the next step's
-    start (pushes, tests). ``models[i]`` is the model env ``i`` steps with (the randomiser's copies,
+    rates] are views of the simulator's state (float64 on MuJoCo C, float32 on Warp), on the CPU:
+    writing into them edits the next step's start (pushes, tests). ``models[i]`` is the model env ``i`` steps with (the randomiser's copies,
     possibly shared between envs).
     """
 
@@ -71,6 +71,36 @@ class Physics(Protocol):
         """Release threads and device memory."""
 
 
+def robot_fields(
+    layout: ModelLayout, qpos: torch.Tensor, qvel: torch.Tensor, sensordata: torch.Tensor
+) -> dict[str, Any]:
+    """The robot fields of :class:`rl.envs.state.EnvState` from state and sensor rows, the same
+    for every backend: ``qpos`` (N, 36), ``qvel`` (N, 35), ``sensordata`` (N, nsensordata) of any
+    float dtype; returns float32 tensors (fresh, never views of the simulator's memory)."""
+    lay = layout
+    # float32 copies: .float() of a float32 view (Warp) would return the view itself
+    qpos, qvel, sens = (t.to(torch.float32, copy=True) for t in (qpos, qvel, sensordata))
+    quat = qpos[:, 3:7]
+    lin_vel_w = qvel[:, 0:3]
+    gravity_dir_w = torch.tensor([0.0, 0.0, -1.0], device=qpos.device).expand(qpos.shape[0], 3)
+    return {
+        "base_pos_w": qpos[:, 0:3],
+        "base_quat_w": quat,
+        "base_lin_vel_w": lin_vel_w,
+        "base_lin_vel_b": quat_rotate_inverse(quat, lin_vel_w),
+        "base_ang_vel_b": qvel[:, 3:6],
+        "projected_gravity_b": quat_rotate_inverse(quat, gravity_dir_w),
+        "joint_pos_rad": qpos[:, 7:],
+        "joint_vel_rps": qvel[:, 6:],
+        "joint_torque_nm": sens[:, lay.torque],
+        "foot_contact_force_n": sens[:, list(lay.foot_touch)],
+        "foot_pos_w": torch.stack([sens[:, lay.foot_pos[0]], sens[:, lay.foot_pos[1]]], dim=1),
+        "foot_vel_w": torch.stack([sens[:, lay.foot_vel[0]], sens[:, lay.foot_vel[1]]], dim=1),
+        "body_ground_contact": sens[:, lay.contact] > 0.5,
+        "contact_body_names": lay.contact_bodies,
+    }
+
+
 class MujocoRolloutPhysics:
     """:class:`Physics` on MuJoCo C: one threaded ``mujoco.rollout`` call per policy step (CPU).
 
@@ -109,7 +139,6 @@ class MujocoRolloutPhysics:
         self.qpos, self.qvel = self.state_t[:, lay.qpos], self.state_t[:, lay.qvel]
         self.stand_qpos = torch.as_tensor(lay.stand_state[lay.qpos], dtype=torch.float64)
         self.stand_qvel = torch.as_tensor(lay.stand_state[lay.qvel], dtype=torch.float64)
-        self._gravity_dir_w = torch.tensor([0.0, 0.0, -1.0]).expand(n, 3)
         self.diverged_total = 0
 
     def set_controls(self, joint_targets_rad: torch.Tensor, wrench_w: torch.Tensor) -> None:
@@ -183,27 +212,9 @@ class MujocoRolloutPhysics:
     def read(self) -> dict[str, Any]:
         """Pelvis pose and velocities, joints, torques, sole forces / poses, link contacts."""
         lay = self.layout
-        qpos = self.state_t[:, lay.qpos].float()
-        qvel = self.state_t[:, lay.qvel].float()
-        sens = self._sensor_t.float()
-        quat = qpos[:, 3:7]
-        lin_vel_w = qvel[:, 0:3]
-        return {
-            "base_pos_w": qpos[:, 0:3],
-            "base_quat_w": quat,
-            "base_lin_vel_w": lin_vel_w,
-            "base_lin_vel_b": quat_rotate_inverse(quat, lin_vel_w),
-            "base_ang_vel_b": qvel[:, 3:6],
-            "projected_gravity_b": quat_rotate_inverse(quat, self._gravity_dir_w),
-            "joint_pos_rad": qpos[:, 7:],
-            "joint_vel_rps": qvel[:, 6:],
-            "joint_torque_nm": sens[:, lay.torque],
-            "foot_contact_force_n": sens[:, list(lay.foot_touch)],
-            "foot_pos_w": torch.stack([sens[:, lay.foot_pos[0]], sens[:, lay.foot_pos[1]]], dim=1),
-            "foot_vel_w": torch.stack([sens[:, lay.foot_vel[0]], sens[:, lay.foot_vel[1]]], dim=1),
-            "body_ground_contact": sens[:, lay.contact] > 0.5,
-            "contact_body_names": lay.contact_bodies,
-        }
+        return robot_fields(
+            lay, self.state_t[:, lay.qpos], self.state_t[:, lay.qvel], self._sensor_t
+        )
 
     def state_dict(self) -> dict[str, Any]:
         """State and sensor rows, divergence count."""

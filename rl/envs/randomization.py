@@ -24,6 +24,8 @@ if TYPE_CHECKING:
 PARAM_NAMES = ("friction", "payload_kg", "com_offset_x_m", "com_offset_y_m", "com_offset_z_m")
 """Columns of the randomisation parameter tensor (N, 5)."""
 NUM_PARAMS = len(PARAM_NAMES)
+MODEL_FIELDS = ("geom_friction", "body_mass", "body_inertia", "body_ipos")
+"""The ``MjModel`` fields :meth:`ModelRandomizer.apply` writes (a batched backend copies these)."""
 
 
 def nominal_params(num_envs: int, model: mujoco.MjModel) -> torch.Tensor:

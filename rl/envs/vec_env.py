@@ -1,8 +1,9 @@
 """``G1VecEnv``: N G1 instances stepped together, as an rsl-rl ``VecEnv``, assembled from parts.
 
 Each part owns its state and ``state_dict`` (:data:`PARTS`): the physics (:mod:`rl.envs.physics`,
-MuJoCo C today), the motion and assist halves of the action (:mod:`rl.envs.assist_action` states
-the assist wrench's frame), observation groups, pushes, randomiser, reset events, contact timers
+MuJoCo C; or :mod:`rl.envs.warp_physics`, MuJoCo Warp, with ``EnvConfig.backend="warp"``), the
+motion and assist halves of the action (:mod:`rl.envs.assist_action` states the assist wrench's
+frame), observation groups, pushes, randomiser, reset events, contact timers
 and the task's components. :meth:`G1VecEnv.step` is the list of stages, torch operations over the
 whole batch. Everything task-specific comes from a :class:`rl.envs.task_schema.TaskConfig`; this
 module never branches on a task. The A2CF curriculum (Algorithm 1) runs in the assist part as an
@@ -64,10 +65,17 @@ class G1VecEnv(VecEnv):
         self.total_mass_kg = float(self.model.body_subtreemass[0])
         self.weight_n = self.total_mass_kg * GRAVITY_MPS2
         self.randomizer = Randomizer(task.randomization, self.model, n, gen)
-        threads = cfg.num_threads or os.cpu_count() or 1
-        self.physics = MujocoRolloutPhysics(
-            self.model, self.randomizer.models, cfg.decimation, threads, cfg.max_abs_qvel
-        )
+        if cfg.backend == "warp":
+            from rl.envs.warp_physics import WarpPhysics  # the gpu extra, imported where used
+
+            self.physics = WarpPhysics(
+                self.model, self.randomizer.models, cfg.decimation, cfg.max_abs_qvel, cfg.device
+            )
+        else:
+            threads = cfg.num_threads or os.cpu_count() or 1
+            self.physics = MujocoRolloutPhysics(
+                self.model, self.randomizer.models, cfg.decimation, threads, cfg.max_abs_qvel
+            )
         self.layout, self.physics_dt_s = self.physics.layout, self.physics.physics_dt_s
         self.step_dt_s = dt = self.physics_dt_s * cfg.decimation
         self.max_episode_length = math.ceil(task.episode_length_s / dt)

@@ -1,0 +1,115 @@
+"""Parity figures of the Warp backend against MuJoCo C: max state errors per policy step.
+
+The same quiet task (no pushes, randomisation or noise) on both backends, the MuJoCo C env started
+from the Warp env's (float32) state, the same random actions (motion and assist) for ``--steps``
+policy steps; then world 0 of a stand pair gets a pelvis wrench that world 1 (same state) does
+not, and the base acceleration it causes is compared. Writes a JSON of the figures.
+
+    python docs/results/gpu/parity.py --device cpu --out parity_cpu.json
+    python docs/results/gpu/parity.py --device cuda --num-envs 64 --out parity_cuda.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import torch
+
+from rl.registry import make_env
+from rl.tasks.config import quiet
+
+
+def pair(task: str, num_envs: int, device: str):
+    """(MuJoCo C env, Warp env) of the quiet ``task`` at the Warp env's start state."""
+    warp = make_env(quiet_task(task), num_envs, backend="warp", device=device)
+    c = make_env(quiet_task(task), num_envs, num_threads=2)
+    lay = c.layout
+    c.state[:, lay.qpos] = warp.physics.qpos.double().numpy()
+    c.state[:, lay.qvel] = warp.physics.qvel.double().numpy()
+    return c, warp
+
+
+def quiet_task(name: str):
+    """The registered task without pushes, randomisation or observation noise."""
+    from rl.registry import get_task
+
+    return quiet(get_task(name))
+
+
+def trajectory_errors(task: str, num_envs: int, steps: int, device: str) -> dict:
+    """Per step: max |dqpos|, |dqvel|, |dreward|, |dfoot force| between the backends."""
+    c, warp = pair(task, num_envs, device)
+    gen = torch.Generator().manual_seed(7)
+    rows = []
+    for _ in range(steps):
+        actions = 0.3 * torch.randn(num_envs, 35, generator=gen)
+        _, rew_c, done_c, _ = c.step(actions)
+        _, rew_w, done_w, _ = warp.step(actions)
+        rows.append(
+            {
+                "qpos": float((c.physics.qpos - warp.physics.qpos.double()).abs().max()),
+                "qvel": float((c.physics.qvel - warp.physics.qvel.double()).abs().max()),
+                "reward": float((rew_c - rew_w).abs().max()),
+                "foot_force_n": float(
+                    (c.env_state.foot_contact_force_n - warp.env_state.foot_contact_force_n)
+                    .abs()
+                    .max()
+                ),
+                "dones_equal": bool(torch.equal(done_c, done_w)),
+            }
+        )
+    c.close()
+    warp.close()
+    worst = {k: max(r[k] for r in rows) for k in ("qpos", "qvel", "reward", "foot_force_n")}
+    return {"per_step": rows, "max": worst, "dones_equal": all(r["dones_equal"] for r in rows)}
+
+
+def wrench_errors(device: str) -> dict:
+    """Base acceleration [m/s^2, rad/s^2] caused by a pelvis wrench on both backends."""
+    c, warp = pair("stand", 2, device)
+    wrench_w = torch.tensor([[60.0, -40.0, 80.0, 6.0, 4.0, -5.0], [0.0] * 6])
+    acc = {}
+    for name, env in (("mujoco", c), ("warp", warp)):
+        env.physics.qpos[1] = env.physics.qpos[0]
+        env.physics.qvel[1] = env.physics.qvel[0]
+        env.physics.set_controls(env.motion.stand_rad.expand(2, -1), wrench_w)
+        env.physics.step()
+        qvel = env.physics.qvel.double()
+        acc[name] = ((qvel[0, :6] - qvel[1, :6]) / env.step_dt_s).tolist()
+    c.close()
+    warp.close()
+    diff = max(abs(a - b) for a, b in zip(acc["mujoco"], acc["warp"], strict=True))
+    return {"base_acc": acc, "max_abs_diff": diff}
+
+
+def main() -> None:
+    """Parse the flags, measure, write the JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", default="cpu", help="Warp device: cpu, cuda or cuda:N")
+    parser.add_argument("--num-envs", type=int, default=4, help="worlds per task [-]")
+    parser.add_argument("--steps", type=int, default=10, help="policy steps compared [-]")
+    parser.add_argument("--out", default="", help="JSON file for the figures")
+    args = parser.parse_args()
+    start = time.perf_counter()
+    figures = {
+        "device": args.device,
+        "num_envs": args.num_envs,
+        "tasks": {
+            t: trajectory_errors(t, args.num_envs, args.steps, args.device)
+            for t in ("stand", "dance")
+        },
+        "wrench": wrench_errors(args.device),
+    }
+    figures["seconds"] = time.perf_counter() - start
+    text = json.dumps(figures, indent=1)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text)
+    summary = {t: r["max"] for t, r in figures["tasks"].items()}
+    print(json.dumps({"max": summary, "wrench_acc_diff": figures["wrench"]["max_abs_diff"]}))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# One prepared check of the MuJoCo Warp backend on a CUDA GPU (issue 22). Writes every figure
+# under $OUT; prints a summary at the end. Nothing here has been run on a GPU yet: the figures are
+# to be measured.
+#
+#   OUT=/path/to/out bash docs/results/gpu/run_gpu_check.sh
+#
+# Needs: the repository's virtual environment (.venv) with the gpu extra
+#   (.venv/bin/pip install -e ".[gpu]"), or WHEELS=/folder/of/wheels for an offline install
+#   (pip download -d wheels -e ".[gpu]" on a machine with an index; warp-lang alone is ~150 MB).
+# Budget: about 9 minutes wall clock (stage limits below: 150 + 240 + 330 s, plus start-up).
+set -uo pipefail
+cd "$(dirname "$0")/../../.."
+: "${OUT:?set OUT to the folder for the figures}"
+mkdir -p "$OUT"
+PY=.venv/bin/python
+if [ -n "${WHEELS:-}" ]; then
+  .venv/bin/pip install -q --no-index --find-links "$WHEELS" -e ".[gpu]" 2>&1 | tail -3
+fi
+# Warp compiles its kernels for the GPU on first use (minutes); keep the cache with the run.
+export WARP_CACHE_PATH="${WARP_CACHE_PATH:-$OUT/warp_cache}"
+status=0
+run() {  # run NAME LIMIT_S COMMAND...: log to $OUT/NAME.log, record the exit code
+  local name=$1 limit=$2
+  shift 2
+  echo "== $name (limit ${limit}s): $*" | tee -a "$OUT/summary.txt"
+  local start=$SECONDS
+  timeout "$limit" "$@" >"$OUT/$name.log" 2>&1
+  local rc=$?
+  echo "   exit $rc after $((SECONDS - start)) s" | tee -a "$OUT/summary.txt"
+  [ "$rc" -eq 0 ] || status=1
+}
+
+{ nvidia-smi; $PY -c "import mujoco_warp, warp, mujoco, torch; print('mujoco', mujoco.__version__, 'mujoco_warp', mujoco_warp.__version__, 'warp', warp.__version__, 'torch', torch.__version__)"; } >"$OUT/machine.txt" 2>&1
+git rev-parse HEAD >>"$OUT/machine.txt" 2>&1
+
+# 1. Parity on the GPU against MuJoCo C (same states and actions; the CUDA graph replays from the
+#    second step on), then the slow Warp tests on cuda.
+run parity_cuda 150 $PY docs/results/gpu/parity.py --device cuda --num-envs 64 --steps 20 \
+  --out "$OUT/parity_cuda.json"
+run tests_cuda 150 env A2CF_WARP_DEVICE=cuda .venv/bin/pytest -q -m slow \
+  tests/test_warp_physics.py -k "not training"
+
+# 2. Env throughput: MuJoCo C and Warp at 1024 worlds in the same run, Warp alone at 4096, 8192.
+run bench_env_1024 120 .venv/bin/a2cf-mb bench env --backends mujoco warp --device cuda \
+  --num-envs 1024 --link-collisions on --num-steps 50 --repeats 2 --output "$OUT/bench_env_1024.json"
+run bench_env_large 120 .venv/bin/a2cf-mb bench env --backends warp --device cuda \
+  --num-envs 4096 8192 --link-collisions on --num-steps 50 --repeats 2 \
+  --output "$OUT/bench_env_large.json"
+
+# 3. 50 iterations of walk-flat at 4096 envs (physics on the GPU, learner on the GPU).
+nvidia-smi --query-gpu=timestamp,memory.used,utilization.gpu --format=csv -l 5 \
+  >"$OUT/gpu_usage.csv" 2>/dev/null &
+SMI=$!
+run train_walk_flat 330 .venv/bin/a2cf-mb train --task walk-flat --env-backend warp \
+  --env-device cuda --num-envs 4096 --device cuda:0 --iterations 50 --save-interval 50 \
+  --out "$OUT/runs" --run-name walk_flat_warp_4096
+kill "$SMI" 2>/dev/null
+
+{
+  echo "== figures"
+  $PY - "$OUT" <<'EOF'
+import json, pathlib, sys
+out = pathlib.Path(sys.argv[1])
+for name in ("parity_cuda.json", "bench_env_1024.json", "bench_env_large.json"):
+    p = out / name
+    if not p.is_file():
+        print(name, "missing")
+        continue
+    d = json.loads(p.read_text())
+    if "tasks" in d:
+        print("parity max errors:", {t: r["max"] for t, r in d["tasks"].items()},
+              "wrench acc diff:", d["wrench"]["max_abs_diff"])
+    else:
+        for key, r in d["sizes"].items():
+            print(key, {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()})
+m = out / "runs" / "walk_flat_warp_4096" / "metrics.json"
+if m.is_file():
+    its = json.loads(m.read_text())["iterations"]
+    print("train: iterations", len(its), "last", {k: its[-1][k] for k in list(its[-1])[:8]})
+else:
+    print("train: no metrics.json (see train_walk_flat.log)")
+EOF
+} 2>&1 | tee -a "$OUT/summary.txt"
+exit "$status"

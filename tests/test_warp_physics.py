@@ -1,0 +1,259 @@
+"""The MuJoCo Warp backend (``EnvConfig.backend="warp"``) against MuJoCo C, on Warp's CPU device.
+
+Tolerances: Warp integrates in float32 (eps 1.2e-7), MuJoCo C in float64. Started from the same
+(float32-representable) state, the stand and dance envs measured max |dqpos| ~1e-6 and
+|dqvel| ~1e-4 over 10 policy steps (40 physics steps with 8 sole contacts solved by Newton each
+step); the bounds below are ~10x that. Randomised envs are compared by their per-world model rows,
+not by trajectories (MuJoCo C skips ``mj_setConst`` after a randomisation, Warp recomputes the
+derived fields, which changes contact softness slightly).
+
+The slow tests need the ``gpu`` extra (mujoco-warp) and compile Warp kernels once (~40 s+, cached
+under ~/.cache/warp). Run with ``CUDA_VISIBLE_DEVICES=""`` where no GPU is meant to be used;
+``A2CF_WARP_DEVICE=cuda`` runs the same checks on a GPU (``docs/results/gpu/run_gpu_check.sh``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import os
+import sys
+
+import numpy as np
+import pytest
+import torch
+from test_training import tiny_config
+
+from a2cf_mb.config_cli import add_config_arguments
+from rl.envs.config import EnvConfig
+from rl.envs.vec_env import G1VecEnv
+from rl.registry import make_env
+from rl.runner import train
+from rl.tasks.config import quiet
+from rl.tasks.dance import DANCE
+from rl.tasks.stand import STAND
+
+needs_warp = pytest.mark.skipif(
+    importlib.util.find_spec("mujoco_warp") is None,
+    reason="mujoco-warp is not installed (pip install -e '.[gpu]')",
+)
+WARP_DEVICE = os.environ.get("A2CF_WARP_DEVICE", "cpu")
+"""Warp device of the slow tests (cpu here; cuda on a GPU machine)."""
+QPOS_ATOL = 1e-5  # [m, rad]
+QVEL_ATOL = 1e-3  # [m/s, rad/s]
+TASKS = {"stand": STAND, "dance": DANCE}
+
+
+def pair(task, num_envs: int) -> tuple[G1VecEnv, G1VecEnv]:
+    """The same quiet task on MuJoCo C and on Warp-CPU, both at Warp's (float32) start state."""
+    warp = make_env(quiet(task), num_envs, backend="warp", device=WARP_DEVICE)
+    c = make_env(quiet(task), num_envs, num_threads=1)
+    align(c, warp)
+    return c, warp
+
+
+def align(c: G1VecEnv, warp: G1VecEnv) -> None:
+    """Write the Warp env's state into the MuJoCo C env."""
+    lay = c.layout
+    c.state[:, lay.qpos] = warp.physics.qpos.double().numpy()
+    c.state[:, lay.qvel] = warp.physics.qvel.double().numpy()
+
+
+def max_errors(c: G1VecEnv, warp: G1VecEnv) -> tuple[float, float]:
+    """Max |qpos| and |qvel| differences between the backends."""
+    dq = (c.physics.qpos - warp.physics.qpos.double()).abs().max()
+    dv = (c.physics.qvel - warp.physics.qvel.double()).abs().max()
+    return float(dq), float(dv)
+
+
+@pytest.mark.slow
+@needs_warp
+@pytest.mark.parametrize("task", ["stand", "dance"])
+def test_same_states_and_actions_give_the_same_trajectory(task: str) -> None:
+    c, warp = pair(TASKS[task], 3)
+    gen = torch.Generator().manual_seed(7)
+    try:
+        for _ in range(10):
+            actions = 0.3 * torch.randn(3, 35, generator=gen)
+            obs_c, rew_c, done_c, _ = c.step(actions)
+            obs_w, rew_w, done_w, _ = warp.step(actions)
+            dq, dv = max_errors(c, warp)
+            assert dq < QPOS_ATOL and dv < QVEL_ATOL, (dq, dv)
+            torch.testing.assert_close(rew_w, rew_c, rtol=1e-4, atol=1e-4)
+            assert torch.equal(done_w, done_c)
+            torch.testing.assert_close(c.applied_wrench, warp.applied_wrench, rtol=1e-4, atol=1e-4)
+            sc, sw = c.env_state, warp.env_state
+            # sole forces carry the solver's float32 error times the stiffness: ~0.1% of weight
+            torch.testing.assert_close(
+                sw.foot_contact_force_n, sc.foot_contact_force_n, rtol=1e-3, atol=0.5
+            )
+            torch.testing.assert_close(sw.joint_torque_nm, sc.joint_torque_nm, rtol=1e-3, atol=1e-2)
+            torch.testing.assert_close(obs_w["policy"], obs_c["policy"], rtol=1e-3, atol=1e-3)
+        assert warp.diverged_total == c.diverged_total == 0
+    finally:
+        c.close()
+        warp.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_the_pelvis_wrench_gives_the_same_base_acceleration() -> None:
+    """World 0 gets a wrench, world 1 (same state) none: the change of base velocity it causes
+    agrees between the backends and points along the force."""
+    c, warp = pair(STAND, 2)
+    try:
+        for env in (c, warp):
+            env.physics.qpos[1] = env.physics.qpos[0]
+            env.physics.qvel[1] = env.physics.qvel[0]
+        wrench_w = torch.tensor([[60.0, -40.0, 80.0, 6.0, 4.0, -5.0], [0.0] * 6])
+        targets = c.motion.stand_rad.expand(2, -1)
+        dv = {}
+        for name, env in (("c", c), ("warp", warp)):
+            env.physics.set_controls(targets, wrench_w)
+            env.physics.step()
+            qvel = env.physics.qvel.double()
+            dv[name] = (qvel[0, :6] - qvel[1, :6]) / env.step_dt_s  # [m/s^2, rad/s^2]
+        torch.testing.assert_close(dv["warp"], dv["c"], rtol=1e-3, atol=1e-2)
+        assert dv["c"][0] > 0.5 and dv["c"][1] < -0.3  # along +x and -y, as pushed
+    finally:
+        c.close()
+        warp.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_a_reset_world_matches_and_the_others_keep_going() -> None:
+    c, warp = pair(STAND, 3)
+    try:
+        for env in (c, warp):
+            env.physics.qpos[1, 2] = 0.2  # pelvis on the floor: a fall, hence a reset
+        zeros = torch.zeros(3, 35)
+        _, _, done_c, _ = c.step(zeros)
+        _, _, done_w, _ = warp.step(zeros)
+        assert done_c.tolist() == done_w.tolist() == [False, True, False]
+        # the reset world starts from the same draw (float32-rounded on Warp)
+        torch.testing.assert_close(
+            warp.physics.qpos[1].double(), c.physics.qpos[1], atol=1e-6, rtol=0
+        )
+        torch.testing.assert_close(
+            warp.physics.qvel[1].double(), c.physics.qvel[1], atol=1e-6, rtol=0
+        )
+        assert warp.episode_length_buf[1] == c.episode_length_buf[1] == 0
+        torch.testing.assert_close(
+            warp.env_state.foot_contact_force_n,
+            c.env_state.foot_contact_force_n,
+            rtol=1e-3,
+            atol=0.5,
+        )
+        for _ in range(3):
+            c.step(zeros)
+            warp.step(zeros)
+        dq, dv = max_errors(c, warp)
+        assert dq < QPOS_ATOL and dv < QVEL_ATOL, (dq, dv)
+    finally:
+        c.close()
+        warp.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_broken_worlds_are_counted_and_reset() -> None:
+    env = make_env(quiet(STAND), 4, backend="warp", device=WARP_DEVICE)
+    try:
+        env.physics.qvel[1, 8] = float("nan")
+        env.physics.qvel[2, 2] = 1e6  # blows up inside the physics step
+        _, reward, dones, extras = env.step(torch.zeros(4, 35))
+        assert dones.tolist() == [False, True, True, False]
+        assert env.diverged_total == 2 and extras["log"]["Episode/diverged_envs"] == 2.0
+        assert reward[1] == reward[2] == 0.0 and torch.isfinite(reward).all()
+        assert torch.isfinite(env.physics.qpos).all() and torch.isfinite(env.physics.qvel).all()
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_state_dict_resumes_exactly_and_refuses_a_mujoco_checkpoint() -> None:
+    env = make_env(STAND, 2, backend="warp", device=WARP_DEVICE)
+    c = make_env(STAND, 2, num_threads=1)
+    try:
+        gen = torch.Generator().manual_seed(3)
+        actions = [0.3 * torch.randn(2, 35, generator=gen) for _ in range(6)]
+        for a in actions[:2]:
+            env.step(a)
+        saved = env.state_dict()
+        first = [env.step(a)[1] for a in actions[2:]]
+        env.load_state_dict(saved)
+        again = [env.step(a)[1] for a in actions[2:]]
+        for r1, r2 in zip(first, again, strict=True):
+            torch.testing.assert_close(r1, r2, rtol=1e-6, atol=1e-6)
+        with pytest.raises(ValueError, match="--env-backend mujoco"):
+            env.load_state_dict(c.state_dict())
+    finally:
+        env.close()
+        c.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_randomised_worlds_carry_their_own_model_and_derived_fields() -> None:
+    """Per-world friction, payload mass and CoM are the randomiser's copies, and ``set_const``
+    derived each world's subtree mass from its own payload."""
+    env = make_env(STAND, 3, backend="warp", device=WARP_DEVICE)
+    try:
+        env.physics.qpos[0, 2] = 0.2  # force a reset: world 0 draws new parameters
+        env.step(torch.zeros(3, 35))
+        phys = env.physics
+        body = env.randomizer.writer.body
+        mass = phys._model_views["body_mass"]
+        ipos = phys._model_views["body_ipos"]
+        friction = phys._model_views["geom_friction"]
+        mass, ipos, friction = mass.cpu(), ipos.cpu(), friction.cpu()
+        subtree = torch.as_tensor(phys.m.body_subtreemass.numpy())
+        for i, model in enumerate(env.models):
+            assert mass[i, body] == pytest.approx(model.body_mass[body], rel=1e-6)
+            np.testing.assert_allclose(ipos[i, body].numpy(), model.body_ipos[body], atol=1e-7)
+            np.testing.assert_allclose(
+                friction[i, :, 0].numpy(), model.geom_friction[:, 0], rtol=1e-6
+            )
+            assert subtree[i, 0] == pytest.approx(model.body_mass.sum(), rel=1e-5)
+        assert len({float(subtree[i, 0]) for i in range(3)}) == 3  # three different payloads
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_two_training_iterations_on_warp_cpu(tmp_path) -> None:
+    env = EnvConfig(backend="warp", device=WARP_DEVICE, num_envs=4, num_threads=1)
+    cfg = tiny_config(tmp_path, "a2cf", env=env)
+    result = train(cfg, verbose=False)
+    assert result.iterations_done == 2
+    assert (result.run_dir / "policy.onnx").is_file()
+
+
+def test_missing_mujoco_warp_names_the_extra(monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "mujoco_warp", None)  # import fails as if not installed
+    with pytest.raises(ModuleNotFoundError, match=r"a2cf-mb\[gpu\]"):
+        make_env(quiet(STAND), 1, backend="warp")
+
+
+def test_backend_and_device_are_checked_and_have_a_short_flag() -> None:
+    with pytest.raises(ValueError, match="mujoco, warp|'mujoco', 'warp'"):
+        EnvConfig(backend="bullet")
+    with pytest.raises(ValueError, match="--env-backend warp"):
+        EnvConfig(device="cuda")
+    with pytest.raises(ValueError, match="cuda:N"):
+        EnvConfig(backend="warp", device="gpu")
+    import argparse
+
+    @dataclasses.dataclass(frozen=True)
+    class Holder:
+        """A config holding an env config."""
+
+        env: EnvConfig = EnvConfig()
+
+    parser = argparse.ArgumentParser()
+    add_config_arguments(parser, Holder)
+    args = parser.parse_args(["--backend", "warp", "--env-device", "cuda:0"])
+    assert (getattr(args, "env.backend"), getattr(args, "env.device")) == ("warp", "cuda:0")
