@@ -265,35 +265,17 @@ class OracleArtifact:
         return folder
 
     @classmethod
+    def read_summary(cls, folder: str | Path) -> ArtifactSummary:
+        """The light reader: the summary of an artifact folder from ``oracle.json`` alone (its
+        manifest checked, no arrays loaded), for readers that need no reference or profiles."""
+        folder = Path(folder)
+        return ArtifactSummary.from_json(_read_summary_json(folder), folder / SUMMARY_FILE)
+
+    @classmethod
     def load(cls, folder: str | Path) -> OracleArtifact:
         """Read and validate an artifact folder written by :meth:`save`."""
         folder = Path(folder)
-        if not folder.exists():
-            recover_folder(folder)  # a replacement killed between its two renames
-        summary_path = folder / SUMMARY_FILE
-        if not summary_path.is_file():
-            raise ArtifactError(
-                f"'{folder}' is not an oracle artifact: {SUMMARY_FILE} is missing. Create one with "
-                "`a2cf-mb solve-walk`, `solve-dance` or `solve-backflip`."
-            )
-        try:
-            summary = json.loads(summary_path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as err:
-            raise ArtifactError(
-                f"{summary_path} is not valid JSON ({err}); regenerate the artifact."
-            ) from err
-        if not isinstance(summary, dict) or summary.get("kind") != ARTIFACT_KIND:
-            kind = summary.get("kind") if isinstance(summary, dict) else None
-            raise ArtifactError(f"{summary_path}: kind is {kind!r}, not {ARTIFACT_KIND!r}.")
-        if summary.get("version") != ARTIFACT_VERSION:
-            raise ArtifactError(
-                f"{summary_path}: artifact version {summary.get('version')} but this code reads "
-                f"version {ARTIFACT_VERSION}; regenerate the artifact."
-            )
-        verify_manifest(folder)
-        for key in ("task", "phase_names", "eta0", "rule", "novice_model", "alphas"):
-            if key not in summary:
-                raise ArtifactError(f"{summary_path}: required field '{key}' is missing.")
+        summary = _read_summary_json(folder)
         arrays_path = folder / ARRAYS_FILE
         if not arrays_path.is_file():
             raise ArtifactError(f"'{folder}': {ARRAYS_FILE} is missing.")
@@ -325,6 +307,70 @@ class OracleArtifact:
             created_utc=summary.get("created_utc", ""),
             git_revision=summary.get("git_revision", ""),
         ).validate()
+
+
+@dataclass(frozen=True)
+class ArtifactSummary:
+    """What a reader of ``oracle.json`` alone gets (:meth:`OracleArtifact.read_summary`)."""
+
+    task: str  # task name the oracle solved ("walk", "dance", ...)
+    phase_names: tuple[str, ...]  # one per row of eta0
+    eta0: np.ndarray  # (num_phases, 6) initial bound [N, N m] per heading-frame axis, float64
+    eta0_frame: str  # the frame eta0's axes are in, as the artifact states it
+    raw: dict  # the whole parsed oracle.json
+
+    @classmethod
+    def from_json(cls, summary: dict, path: Path | str = SUMMARY_FILE) -> ArtifactSummary:
+        """The summary of a parsed, checked ``oracle.json`` (``path`` names it in errors)."""
+        phases = tuple(summary["phase_names"])
+        try:
+            eta0 = np.asarray(summary["eta0"], dtype=float)
+        except (TypeError, ValueError) as err:
+            raise ArtifactError(f"{path}: eta0 is not a table of numbers ({err}).") from err
+        if eta0.shape != (len(phases), len(AXIS_NAMES)):
+            raise ArtifactError(
+                f"{path}: eta0 has shape {eta0.shape}, expected ({len(phases)}, "
+                f"{len(AXIS_NAMES)}) (one row per phase of {list(phases)}); regenerate the artifact."
+            )
+        return cls(
+            task=summary["task"],
+            phase_names=phases,
+            eta0=eta0,
+            eta0_frame=summary.get("eta0_frame", ""),
+            raw=summary,
+        )
+
+
+def _read_summary_json(folder: Path) -> dict:
+    """``oracle.json`` of ``folder``, parsed and checked (kind, version, manifest, required
+    fields); :class:`ArtifactError` with one line naming what is wrong otherwise."""
+    if not folder.exists():
+        recover_folder(folder)  # a replacement killed between its two renames
+    summary_path = folder / SUMMARY_FILE
+    if not summary_path.is_file():
+        raise ArtifactError(
+            f"'{folder}' is not an oracle artifact: {SUMMARY_FILE} is missing. Create one with "
+            "`a2cf-mb solve-walk`, `solve-dance` or `solve-backflip`."
+        )
+    try:
+        summary = json.loads(summary_path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ArtifactError(
+            f"{summary_path} is not valid JSON ({err}); regenerate the artifact."
+        ) from err
+    if not isinstance(summary, dict) or summary.get("kind") != ARTIFACT_KIND:
+        kind = summary.get("kind") if isinstance(summary, dict) else None
+        raise ArtifactError(f"{summary_path}: kind is {kind!r}, not {ARTIFACT_KIND!r}.")
+    if summary.get("version") != ARTIFACT_VERSION:
+        raise ArtifactError(
+            f"{summary_path}: artifact version {summary.get('version')} but this code reads "
+            f"version {ARTIFACT_VERSION}; regenerate the artifact."
+        )
+    verify_manifest(folder)
+    for key in ("task", "phase_names", "eta0", "rule", "novice_model", "alphas"):
+        if key not in summary:
+            raise ArtifactError(f"{summary_path}: required field '{key}' is missing.")
+    return summary
 
 
 def _profile_from_arrays(arrays: dict[str, np.ndarray], alpha: float) -> WrenchProfile:

@@ -1,8 +1,10 @@
-"""The run folder's file names, and the lock that lets one process at a time write a run folder.
+"""The run folder: its file names, the lock that lets one process at a time write it, and where a
+run starts in it (new folder, or resume from the newest readable checkpoint).
 
 The names are defined here once; :mod:`rl.runner` (which writes a run folder, and re-exports them),
 :mod:`rl.compare`, :mod:`rl.sim2sim`, :mod:`a2cf_mb.demo` and the benchmarks import them. This
-module imports nothing heavy, so readers of a run folder need not load torch or the env.
+module imports nothing heavy, so readers of a run folder need not load torch or the env (the
+checkpoint choice imports torch when it runs).
 
 :class:`RunFolderLock` holds ``<run folder>/run.lock`` while a run is trained or resumed. The file
 is created with ``O_CREAT | O_EXCL`` (of two processes, exactly one creates it) and names its
@@ -24,11 +26,14 @@ import socket
 import sys
 import time
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path, PurePath
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from optimal_control.files import process_alive
+
+if TYPE_CHECKING:
+    from rl.train_config import TrainConfig
 
 CONFIG_FILE = "config.json"
 """Resolved TrainConfig, the resolved task, env config, rsl-rl config and eta0."""
@@ -250,3 +255,106 @@ class RunFolderLock:
             "write a run folder; wait for that run to end or stop it, or write into another "
             f"folder (--run-name, --out); if that process has ended, delete {self.path}"
         )
+
+
+# ------------------------------------------------------------------ create, resume, checkpoint
+def new_run_dir(cfg: TrainConfig) -> Path:
+    """The folder of a new run: ``<out>/<run name>`` (by default task, mode and UTC time)."""
+    name = cfg.run_name or f"{cfg.task}_{cfg.mode}_{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
+    return Path(cfg.out) / name
+
+
+def require_unused(run_dir: Path) -> None:
+    """Refuse a new run in a folder that already holds one."""
+    if (run_dir / CONFIG_FILE).exists():
+        raise FileExistsError(
+            f"run folder {run_dir} already holds a run: pick another --run-name or use --resume"
+        )
+
+
+def load_run_config(run_dir: str | Path) -> TrainConfig:
+    """The TrainConfig saved in a run folder (clear errors for a missing or broken file)."""
+    from rl.train_config import TrainConfig
+
+    path = Path(run_dir) / CONFIG_FILE
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
+        )
+    try:
+        return TrainConfig.from_dict(json.loads(path.read_text())["train"])
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+        raise ValueError(
+            f"{path} is not a valid run config ({err}); restore it or start a new run"
+        ) from err
+
+
+def _readable(path: Path) -> bool:
+    import torch
+
+    try:
+        state = torch.load(path, weights_only=False, map_location="cpu")
+    except Exception:  # any unreadable file: truncated zip, foreign pickle, empty
+        return False
+    return isinstance(state, dict) and "completed_iterations" in state
+
+
+def resumable_checkpoint(run_dir: Path) -> Path | None:
+    """The checkpoint a resume continues from: ``last.pt``, or when it cannot be read (a disk
+    fault: it is written atomically) the newest readable ``model_<k>.pt``, with a warning;
+    None when the run has no checkpoint yet. Unreadable checkpoints only: a clear error."""
+    folder = run_dir / CHECKPOINT_DIR
+    last = folder / LAST_CHECKPOINT
+    kept = sorted(
+        folder.glob("model_*.pt"),
+        key=lambda p: int(p.stem.split("_")[1]) if p.stem.split("_")[1].isdigit() else -1,
+        reverse=True,
+    )
+    if not last.exists() and not kept:
+        return None
+    if last.exists() and _readable(last):
+        return last
+    for candidate in kept:
+        if _readable(candidate):
+            print(
+                f"a2cf-mb train: warning: {last} cannot be read; resuming from {candidate.name}, "
+                "the newest readable checkpoint (later iterations are redone)",
+                file=sys.stderr,
+            )
+            return candidate
+    raise ValueError(
+        f"no readable checkpoint in {folder} ({LAST_CHECKPOINT} and model_<k>.pt are damaged): "
+        "this run cannot be resumed; start a new run"
+    )
+
+
+@dataclass(frozen=True)
+class StartPoint:
+    """Where a run starts (:func:`start_point`)."""
+
+    cfg: TrainConfig  # the run's config (for a resume: the saved one with the new iterations)
+    checkpoint: Path | None  # the checkpoint to continue from; None: from iteration 0
+    saved_eta0: list | None  # (P, 6) eta0 of config.json when a resume restarts from iteration 0
+
+
+def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
+    """The config and checkpoint a run starts from. A new run needs an unused folder; a resume
+    takes the saved config (with ``cfg.iterations``, the new total) and the newest readable
+    checkpoint, or, killed before its first checkpoint, starts over from iteration 0 (the same
+    seed gives the same run; the lost iterations' logs go)."""
+    if not cfg.resume:
+        require_unused(run_dir)
+        return StartPoint(cfg, None, None)
+    saved = load_run_config(run_dir)
+    cfg = replace(saved, iterations=cfg.iterations, resume=cfg.resume)
+    checkpoint = resumable_checkpoint(run_dir)
+    if checkpoint is not None:
+        return StartPoint(cfg, checkpoint, None)
+    print(
+        f"a2cf-mb train: warning: {run_dir} has no checkpoint yet (stopped during its first "
+        "iteration); starting it again from iteration 0 with its saved config",
+        file=sys.stderr,
+    )
+    for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
+        stale.unlink(missing_ok=True)
+    return StartPoint(cfg, None, json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0"))

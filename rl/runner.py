@@ -13,7 +13,9 @@ with exact resume.
     policy.onnx          exported motion policy (+ policy.json describing its inputs/outputs)
     run.lock             while a process trains in it (one process at a time, rl.run_folder)
 
-The file names are :mod:`rl.run_folder`'s (re-exported here).
+The file names, the lock and where a run starts (new folder, resume, checkpoint rescue) are
+:mod:`rl.run_folder`'s; the warm start before PPO is :mod:`rl.warmstart`'s (their names used
+elsewhere are re-exported here).
 
 The loop is rsl-rl's :meth:`~rsl_rl.runners.OnPolicyRunner.learn`, untouched: Algorithm 1 runs in
 the env as an iteration-rate event (:class:`rl.curriculum.CurriculumEvent`), so multi-process
@@ -25,12 +27,10 @@ curriculum state, the curriculum log, per-iteration metrics and the export.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import io
 import json
 import random
 import sys
-import time
 from collections import deque
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -53,7 +53,7 @@ from rl.alone_eval import AloneEvaluation
 from rl.curriculum import AssistCurriculum, CurriculumEvent, identical_axis_bounds
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task
-from rl.run_folder import (
+from rl.run_folder import (  # noqa: F401 - names re-exported for readers of rl.runner
     CHECKPOINT_DIR,
     CONFIG_FILE,
     CURRICULUM_LOG,
@@ -64,9 +64,14 @@ from rl.run_folder import (
     POLICY_FILE,
     WARMSTART_FILE,
     RunFolderLock,
+    load_run_config,
+    new_run_dir,
+    resumable_checkpoint,
+    start_point,
 )
 from rl.tasks.config import TaskConfig
 from rl.train_config import TrainConfig
+from rl.warmstart import require_joint_reference, warm_start, warmstart_eta0
 
 CHECKPOINT_FORMAT = 3
 """Version of the checkpoint layout (2: env state and curriculum event inside; 3: the env state
@@ -333,74 +338,6 @@ class A2CFRunner(OnPolicyRunner):
         atomic_write_text(self.run_dir / CURRICULUM_LOG, text)
 
 
-def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
-    """eta0 from the oracle artifact named by ``--warmstart`` (None for a built-in coach).
-
-    The artifact's task and phases must be the training task's."""
-    from rl.coaches import COACHES
-
-    if not cfg.warmstart or cfg.warmstart in COACHES:
-        return None
-    folder = Path(cfg.warmstart)
-    if not (folder / "oracle.json").is_file():
-        raise ValueError(
-            f"--warmstart '{cfg.warmstart}' is neither a built-in coach ({sorted(COACHES)}) nor an "
-            "oracle artifact folder (no oracle.json): run a2cf-mb solve-* first"
-        )
-    from optimal_control.artifact import verify_manifest
-
-    verify_manifest(folder)
-    summary = json.loads((folder / "oracle.json").read_text())
-    phases = tuple(summary.get("phase_names", ()))
-    eta0 = torch.tensor(summary["eta0"], dtype=torch.float32)
-    if summary.get("task") != task.name:
-        raise ValueError(
-            f"--warmstart artifact {folder} is for task '{summary.get('task')}', the training "
-            f"task is '{task.name}': solve the oracle for '{task.name}'"
-        )
-    if phases == task.phase_names:
-        return eta0
-    if task.num_phases == 1:
-        return eta0.max(dim=0, keepdim=True).values  # one bound covering every oracle phase
-    raise ValueError(
-        f"--warmstart artifact {folder} has phases {list(phases)}; the training task "
-        f"'{task.name}' has phases {list(task.phase_names)}"
-    )
-
-
-def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
-    """Before PPO (curriculum detached meanwhile): ``--warmstart-motion`` clones the motion head
-    from the task's reference, then ``--warmstart`` distils the coach into the assist head (in the
-    states the cloned motion policy visits). The report of each goes into ``warmstart.json``."""
-    from rl.coaches import COACHES, ArtifactCoach
-    from rl.warmstart import distill_assist_head, distill_motion_head
-
-    event = env.curriculum_event
-    env.attach_curriculum(None)  # the distillation's env steps are no rollout of Algorithm 1
-    report: dict[str, Any] = {}
-    if cfg.warmstart_motion:
-        report["motion"] = distill_motion_head(runner.alg.actor, runner.env, cfg.distill)
-    if cfg.warmstart:
-        if cfg.warmstart in COACHES:
-            coach, source = COACHES[cfg.warmstart](env), f"built-in coach '{cfg.warmstart}'"
-        elif env.command_gen.reference_time_s() is None:
-            # walk: the artifact solved one commanded walk, the task draws random commands, so
-            # there is no time along the artifact to follow; its eta0 still sets the bounds
-            coach = COACHES["posture"](env)
-            source = (
-                f"eta0 of the oracle artifact {cfg.warmstart}; coach: built-in 'posture' (task "
-                f"'{env.task.name}' has no time-indexed reference for the artifact's coach)"
-            )
-        else:
-            coach = ArtifactCoach(cfg.warmstart)
-            source = f"coach and eta0 of the oracle artifact {cfg.warmstart} (as needed: banded)"
-        report.update(
-            coach=source, **distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
-        )
-    env.attach_curriculum(event)
-    return report
-
-
 def seed_everything(seed: int) -> None:
     """Seed python, numpy and torch."""
     random.seed(seed)
@@ -425,70 +362,6 @@ def resolve_task(cfg: TrainConfig) -> TaskConfig:
     return get_task(cfg.task).with_overrides(cfg.task_overrides)
 
 
-def load_run_config(run_dir: str | Path) -> TrainConfig:
-    """The TrainConfig saved in a run folder (clear errors for a missing or broken file)."""
-    path = Path(run_dir) / CONFIG_FILE
-    if not path.is_file():
-        raise FileNotFoundError(
-            f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
-        )
-    try:
-        return TrainConfig.from_dict(json.loads(path.read_text())["train"])
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
-        raise ValueError(
-            f"{path} is not a valid run config ({err}); restore it or start a new run"
-        ) from err
-
-
-def _readable(path: Path) -> bool:
-    try:
-        state = torch.load(path, weights_only=False, map_location="cpu")
-    except Exception:  # any unreadable file: truncated zip, foreign pickle, empty
-        return False
-    return isinstance(state, dict) and "completed_iterations" in state
-
-
-def resumable_checkpoint(run_dir: Path) -> Path | None:
-    """The checkpoint a resume continues from: ``last.pt``, or when it cannot be read (a disk
-    fault: it is written atomically) the newest readable ``model_<k>.pt``, with a warning;
-    None when the run has no checkpoint yet. Unreadable checkpoints only: a clear error."""
-    folder = run_dir / CHECKPOINT_DIR
-    last = folder / LAST_CHECKPOINT
-    kept = sorted(
-        folder.glob("model_*.pt"),
-        key=lambda p: int(p.stem.split("_")[1]) if p.stem.split("_")[1].isdigit() else -1,
-        reverse=True,
-    )
-    if not last.exists() and not kept:
-        return None
-    if last.exists() and _readable(last):
-        return last
-    for candidate in kept:
-        if _readable(candidate):
-            print(
-                f"a2cf-mb train: warning: {last} cannot be read; resuming from {candidate.name}, "
-                "the newest readable checkpoint (later iterations are redone)",
-                file=sys.stderr,
-            )
-            return candidate
-    raise ValueError(
-        f"no readable checkpoint in {folder} ({LAST_CHECKPOINT} and model_<k>.pt are damaged): "
-        "this run cannot be resumed; start a new run"
-    )
-
-
-def _new_run_dir(cfg: TrainConfig) -> Path:
-    name = cfg.run_name or f"{cfg.task}_{cfg.mode}_{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
-    return Path(cfg.out) / name
-
-
-def _require_unused(run_dir: Path) -> None:
-    if (run_dir / CONFIG_FILE).exists():
-        raise FileExistsError(
-            f"run folder {run_dir} already holds a run: pick another --run-name or use --resume"
-        )
-
-
 def build_training(
     cfg: TrainConfig, run_dir: Path, eta0: torch.Tensor | None = None
 ) -> tuple[G1VecEnv, A2CFRunner, dict[str, Any]]:
@@ -499,8 +372,6 @@ def build_training(
         eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(cfg.env, task)
     if cfg.warmstart_motion:
-        from rl.warmstart import require_joint_reference
-
         try:
             require_joint_reference(env)
         except ValueError:
@@ -536,7 +407,7 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
     Raises:
         rl.run_folder.RunFolderBusyError: another process is training in the run folder.
     """
-    run_dir = Path(cfg.resume) if cfg.resume else _new_run_dir(cfg)
+    run_dir = Path(cfg.resume) if cfg.resume else new_run_dir(cfg)
     # One process at a time writes a run folder: the lock comes before anything in it is read
     # (for a resume) or written.
     with RunFolderLock(run_dir, create=not cfg.resume):
@@ -547,27 +418,10 @@ def _train_locked(
     cfg: TrainConfig, run_dir: Path, eta0: torch.Tensor | None, verbose: bool
 ) -> TrainResult:
     """:func:`train` while this process holds the run folder's lock."""
-    if cfg.resume:
-        saved = load_run_config(run_dir)
-        cfg = dataclasses.replace(saved, iterations=cfg.iterations, resume=cfg.resume)
-        checkpoint = resumable_checkpoint(run_dir)
-        if checkpoint is None:
-            # Killed before its first checkpoint: start over from the saved config (the same
-            # seed gives the same run); the lost iterations' logs go.
-            print(
-                f"a2cf-mb train: warning: {run_dir} has no checkpoint yet (stopped during its first "
-                "iteration); starting it again from iteration 0 with its saved config",
-                file=sys.stderr,
-            )
-            for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
-                stale.unlink(missing_ok=True)
-            saved_eta0 = json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0")
-            if eta0 is None and saved_eta0 is not None:
-                eta0 = torch.tensor(saved_eta0)
-    else:
-        _require_unused(run_dir)
-        checkpoint = None
-
+    start = start_point(cfg, run_dir)
+    cfg, checkpoint = start.cfg, start.checkpoint
+    if eta0 is None and start.saved_eta0 is not None:
+        eta0 = torch.tensor(start.saved_eta0)
     seed_everything(cfg.seed)
     if cfg.torch_threads:
         torch.set_num_threads(cfg.torch_threads)
@@ -581,34 +435,49 @@ def _train_locked(
     if checkpoint is not None:
         runner.load_checkpoint(checkpoint)
     if not (run_dir / CONFIG_FILE).is_file():
-        event = env.curriculum_event
-        atomic_write_json(
-            run_dir / CONFIG_FILE,
-            {
-                "train": cfg.to_dict(),
-                "task": env.task.to_json_dict(),
-                "env": asdict(env.cfg),
-                "rsl_rl": rsl_cfg,
-                "eta0": event.curriculum.eta0.tolist() if event is not None else None,
-            },
-        )
-        atomic_write_json(run_dir / GIT_FILE, git_revision(Path(__file__).resolve().parent))
-
+        _write_run_config(run_dir, cfg, env, rsl_cfg)
     if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
         atomic_write_json(run_dir / WARMSTART_FILE, warm_start(cfg, env, runner))
-
-    remaining = cfg.iterations - runner.completed_iterations
     try:
-        if remaining > 0:
-            with quiet:
-                # Random episode counters only at the start of a run: a resume continues the
-                # checkpointed ones.
-                runner.learn(
-                    remaining, init_at_random_ep_len=cfg.random_episode_start and not checkpoint
-                )
+        with quiet:
+            # Random episode counters only at the start of a run: a resume continues the
+            # checkpointed ones.
+            _learn(runner, cfg, random_start=cfg.random_episode_start and not checkpoint)
     finally:
         env.close()
+    metrics = _finish(runner, cfg, env, run_dir)
+    return TrainResult(
+        run_dir=run_dir, iterations_done=runner.completed_iterations, metrics=metrics
+    )
 
+
+def _write_run_config(
+    run_dir: Path, cfg: TrainConfig, env: G1VecEnv, rsl_cfg: dict[str, Any]
+) -> None:
+    """config.json (train config, resolved task, env and rsl-rl configs, eta0) and git.json."""
+    event = env.curriculum_event
+    atomic_write_json(
+        run_dir / CONFIG_FILE,
+        {
+            "train": cfg.to_dict(),
+            "task": env.task.to_json_dict(),
+            "env": asdict(env.cfg),
+            "rsl_rl": rsl_cfg,
+            "eta0": event.curriculum.eta0.tolist() if event is not None else None,
+        },
+    )
+    atomic_write_json(run_dir / GIT_FILE, git_revision(Path(__file__).resolve().parent))
+
+
+def _learn(runner: A2CFRunner, cfg: TrainConfig, random_start: bool) -> None:
+    """rsl-rl's loop for the iterations not done yet (``cfg.iterations`` in all)."""
+    remaining = cfg.iterations - runner.completed_iterations
+    if remaining > 0:
+        runner.learn(remaining, init_at_random_ep_len=random_start)
+
+
+def _finish(runner: A2CFRunner, cfg: TrainConfig, env: G1VecEnv, run_dir: Path) -> dict[str, Any]:
+    """The ONNX export (when asked) and metrics.json; returns the metrics."""
     metrics = summarise(runner, cfg)
     if cfg.export_onnx:
         from rl.export import export_motion_policy
@@ -616,9 +485,7 @@ def _train_locked(
         export = export_motion_policy(runner.alg.get_policy(), run_dir / POLICY_FILE, env=env)
         metrics["onnx"] = export
     atomic_write_json(run_dir / METRICS_FILE, metrics)
-    return TrainResult(
-        run_dir=run_dir, iterations_done=runner.completed_iterations, metrics=metrics
-    )
+    return metrics
 
 
 def summarise(runner: A2CFRunner, cfg: TrainConfig) -> dict[str, Any]:

@@ -8,7 +8,8 @@ head's mean, through the bound and the squash (``eta * tanh(raw)``), is regresse
 The fit per axis on held-out states is reported (``warmstart.json`` in the run folder).
 
 ``--warmstart-motion`` clones the motion head the same way from a time-indexed reference's joint
-targets (:func:`distill_motion_head`).
+targets (:func:`distill_motion_head`). :func:`warm_start` runs both for a run (the coach chosen by
+:func:`choose_coach`), :func:`warmstart_eta0` reads the initial bounds of an oracle artifact.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import torch
 from tensordict import TensorDict
@@ -25,6 +27,11 @@ from rl.agents.models import A2CFActor
 from rl.curriculum import WRENCH_AXES
 from rl.envs.vec_env import G1VecEnv
 from robots import g1
+
+if TYPE_CHECKING:
+    from rl.runner import A2CFRunner
+    from rl.tasks.config import TaskConfig
+    from rl.train_config import TrainConfig
 
 Coach = Callable[[G1VecEnv], torch.Tensor]
 """A coach: the env (its ``env_state``, and for reference-tracking coaches its command's time along
@@ -243,3 +250,75 @@ def _report(actor, obs, target, bound, cfg, num_samples) -> dict[str, Any]:
         "held_out_fit": per_axis,
         "loss_held_out": float(_loss(_assist_mean(actor, obs), target, bound).detach()),
     }
+
+
+# ------------------------------------------------------------------ the warm start of a run
+def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
+    """eta0 from the oracle artifact named by ``--warmstart`` (None for a built-in coach).
+
+    The artifact's task and phases must be the training task's."""
+    from rl.coaches import COACHES
+
+    if not cfg.warmstart or cfg.warmstart in COACHES:
+        return None
+    from optimal_control.artifact import SUMMARY_FILE, OracleArtifact
+
+    folder = Path(cfg.warmstart)
+    if not (folder / SUMMARY_FILE).is_file():
+        raise ValueError(
+            f"--warmstart '{cfg.warmstart}' is neither a built-in coach ({sorted(COACHES)}) nor an "
+            f"oracle artifact folder (no {SUMMARY_FILE}): run a2cf-mb solve-* first"
+        )
+    summary = OracleArtifact.read_summary(folder)
+    eta0 = torch.tensor(summary.eta0, dtype=torch.float32)
+    if summary.task != task.name:
+        raise ValueError(
+            f"--warmstart artifact {folder} is for task '{summary.task}', the training "
+            f"task is '{task.name}': solve the oracle for '{task.name}'"
+        )
+    if summary.phase_names == task.phase_names:
+        return eta0
+    if task.num_phases == 1:
+        return eta0.max(dim=0, keepdim=True).values  # one bound covering every oracle phase
+    raise ValueError(
+        f"--warmstart artifact {folder} has phases {list(summary.phase_names)}; the training "
+        f"task '{task.name}' has phases {list(task.phase_names)}"
+    )
+
+
+def choose_coach(source: str, env: G1VecEnv) -> tuple[Coach, str]:
+    """The coach ``--warmstart source`` names (a built-in coach or an oracle artifact folder) for
+    ``env``'s task, and a sentence saying which it is (for ``warmstart.json``)."""
+    from rl.coaches import COACHES, ArtifactCoach
+
+    if source in COACHES:
+        return COACHES[source](env), f"built-in coach '{source}'"
+    if env.command_gen.reference_time_s() is None:
+        # walk: the artifact solved one commanded walk, the task draws random commands, so
+        # there is no time along the artifact to follow; its eta0 still sets the bounds
+        return COACHES["posture"](env), (
+            f"eta0 of the oracle artifact {source}; coach: built-in 'posture' (task "
+            f"'{env.task.name}' has no time-indexed reference for the artifact's coach)"
+        )
+    return (
+        ArtifactCoach(source),
+        f"coach and eta0 of the oracle artifact {source} (as needed: banded)",
+    )
+
+
+def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
+    """Before PPO (curriculum detached meanwhile): ``--warmstart-motion`` clones the motion head
+    from the task's reference, then ``--warmstart`` distils the coach into the assist head (in the
+    states the cloned motion policy visits). The report of each goes into ``warmstart.json``."""
+    event = env.curriculum_event
+    env.attach_curriculum(None)  # the distillation's env steps are no rollout of Algorithm 1
+    report: dict[str, Any] = {}
+    if cfg.warmstart_motion:
+        report["motion"] = distill_motion_head(runner.alg.actor, runner.env, cfg.distill)
+    if cfg.warmstart:
+        coach, source = choose_coach(cfg.warmstart, env)
+        report.update(
+            coach=source, **distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
+        )
+    env.attach_curriculum(event)
+    return report

@@ -80,7 +80,11 @@ def test_artifact_round_trip(tmp_path, g1_pin):
     np.testing.assert_allclose(loaded.reference.extras["marker"], np.arange(8.0))
     np.testing.assert_allclose(loaded.extra_arrays["table"], np.ones((2, 3)))
     assert loaded.extra_summary == {"note": "test"}
-    summary = json.loads((folder / "oracle.json").read_text())
+    light = OracleArtifact.read_summary(folder)  # oracle.json alone, no arrays
+    assert (light.task, light.phase_names) == ("tiny", ("a", "b", "c"))
+    np.testing.assert_array_equal(light.eta0, loaded.eta0)
+    assert "heading frame" in light.eta0_frame
+    summary = light.raw
     assert summary["eta0_per_phase"]["b"]["force_n"][2] == pytest.approx(art.eta0[1, 2])
     assert summary["alphas"] == [1.0, 0.5]
     assert summary["rule"]["name"] == "percentile_margin"
@@ -95,6 +99,8 @@ def test_artifact_load_rejects_bad_folders(tmp_path, g1_pin):
     (folder / "oracle.json").write_text(json.dumps(summary))
     with pytest.raises(ArtifactError, match="version 999"):
         OracleArtifact.load(folder)
+    with pytest.raises(ArtifactError, match="version 999"):
+        OracleArtifact.read_summary(folder)
     summary["version"] = ARTIFACT_VERSION
     summary["eta0"] = [[1.0] * 6]  # one row for three phases
     (folder / "oracle.json").write_text(json.dumps(summary))
@@ -103,6 +109,10 @@ def test_artifact_load_rejects_bad_folders(tmp_path, g1_pin):
     write_manifest(folder)  # seal the deliberate edit: the content check now speaks
     with pytest.raises(ArtifactError, match="eta0 has shape"):
         OracleArtifact.load(folder)
+    with pytest.raises(
+        ArtifactError, match=r"oracle\.json: eta0 has shape \(1, 6\), expected \(3, 6\)"
+    ):
+        OracleArtifact.read_summary(folder)
 
 
 def test_partial_or_mixed_artifacts_do_not_load(tmp_path, g1_pin):

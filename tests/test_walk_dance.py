@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -109,7 +107,7 @@ def test_oracle_pipeline_on_a_walk_slice(walk_plan, tmp_path):
     assert art.novice_profile.solved.all() and loaded.novice_profile.solved.all()
     assert loaded.phase_names == WALK_PHASES
     assert "no video" in loaded.video_note
-    summary = json.loads((folder / "oracle.json").read_text())
+    summary = OracleArtifact.read_summary(folder).raw
     assert summary["paper_eta0"] == [[40.0, 40.0, 10.0, 40.0, 40.0, 40.0]]
     assert summary["extra"]["note"] == "slice"
     # The upper envelope (no ground) carries the weight: far above the novice bound.

@@ -89,6 +89,7 @@ def test_train_with_warmstart_writes_the_report_and_refuses_bad_sources(tmp_path
 @pytest.mark.slow
 def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
     """The oracle's coach of the built-in dance, followed at each env's clip time (~1 min)."""
+    from optimal_control.artifact import OracleArtifact
     from optimal_control.oracle import OracleConfig, solve_dance, solve_walk
     from optimal_control.walk import WalkConfig
 
@@ -103,7 +104,7 @@ def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
     report = json.loads((run / "warmstart.json").read_text())
     assert "coach and eta0 of the oracle artifact" in report["coach"]
     eta0 = json.loads((run / "config.json").read_text())["eta0"]
-    oracle = json.loads((dance_dir / "oracle.json").read_text())["eta0"]
+    oracle = OracleArtifact.read_summary(dance_dir).eta0
     torch.testing.assert_close(torch.tensor(eta0), torch.tensor(oracle, dtype=torch.float32))
     assert report["held_out_fit"]["my"]["coach_mean_abs"] > 0
     _, walk_dir = solve_walk(
@@ -115,7 +116,7 @@ def test_warmstart_from_a_dance_artifact_distils_its_coach(tmp_path):
     report = json.loads((walk / "warmstart.json").read_text())
     assert "coach: built-in 'posture'" in report["coach"]
     eta0 = json.loads((walk / "config.json").read_text())["eta0"]
-    oracle = json.loads((walk_dir / "oracle.json").read_text())["eta0"]
+    oracle = OracleArtifact.read_summary(walk_dir).eta0
     torch.testing.assert_close(torch.tensor(eta0), torch.tensor(oracle).max(0).values[None].float())
 
 

@@ -1,0 +1,76 @@
+"""The dance's skill measure: the mean joint tracking error of recent episodes."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from rl.envs.state import EnvState
+from rl.tasks.components import EpisodeWindow, SkillMeasure
+from rl.tasks.dance.terms import joint_error_mean_abs
+
+
+@dataclass(frozen=True)
+class TrackingSkillConfig:
+    """Skill = ``threshold_rad`` over the mean joint tracking error of recent episodes.
+
+    Each counted episode contributes its mean absolute joint error at its last step (the
+    :class:`SkillMeasure` hook sees the episode's last state only), a fall ``fall_error_rad``.
+    """
+
+    threshold_rad: float = 0.16  # joint tracking error that counts as learned (paper) [rad]
+    fall_error_rad: float = 1.0  # error charged for an episode that fell [rad]
+    window: int = 256  # counted episodes in the moving window [-]
+
+    def __post_init__(self) -> None:
+        if self.threshold_rad <= 0 or self.window < 1:
+            raise ValueError(f"need threshold_rad > 0 and window >= 1, got {self}")
+
+    def build(self, max_episode_length: int) -> SkillMeasure:
+        """The live measure."""
+        return TrackingSkill(self, max_episode_length)
+
+
+class TrackingSkill(SkillMeasure):
+    """Moving window of episode tracking errors (see :class:`TrackingSkillConfig`)."""
+
+    def __init__(self, cfg: TrackingSkillConfig, max_episode_length: int) -> None:
+        self.cfg = cfg
+        self.max_episode_length = max_episode_length
+        self.window = EpisodeWindow(cfg.window)
+
+    def on_episodes_end(
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
+    ) -> None:
+        """Push the error of each counted finished episode."""
+        err = joint_error_mean_abs(state)[env_ids]
+        err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
+        self.window.push(err[self.counted(time_outs, lived_steps)])
+
+    def mean_error_rad(self) -> float:
+        """Mean error of the window [rad] (inf before any counted episode)."""
+        return self.window.mean(empty=math.inf)
+
+    def progress(self) -> float:
+        """``threshold / mean error`` (>= 1: learned; 0 before any episode)."""
+        err = self.mean_error_rad()
+        return self.cfg.threshold_rad / err if math.isfinite(err) and err > 0 else 0.0
+
+    def log(self) -> dict[str, float]:
+        """The window's mean episode-end joint error."""
+        return {"Skill/dance_joint_error_rad": self.mean_error_rad()} if self.window.count else {}
+
+    def state_dict(self) -> dict[str, Any]:
+        """The window."""
+        return self.window.state_dict()
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the window."""
+        self.window.load_state_dict(state)

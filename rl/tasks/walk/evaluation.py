@@ -1,0 +1,150 @@
+"""Walk evaluation (``TaskConfig.evaluation`` of ``walk``): per terrain type and level, with
+assistance off, survival, linear and yaw velocity-tracking error, distance walked and the level.
+
+:meth:`WalkEvaluationConfig.build` pins env i to a tile (column i mod num_cols, level
+``levels[(i // num_cols) mod len(levels)]``) and re-places every robot; each env's first episode
+is scored. :meth:`WalkEvaluator.finish` writes ``walk_eval.json`` and ``walk_eval.png`` into the
+run folder and returns the table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from optimal_control.files import atomic_savefig, atomic_write_json
+
+EVAL_JSON = "walk_eval.json"
+EVAL_PLOT = "walk_eval.png"
+
+
+@dataclass(frozen=True)
+class WalkEvaluationConfig:
+    """Which terrain levels the walk evaluation places robots on."""
+
+    levels: tuple[int, ...] = (0, 3, 6, 9)  # terrain levels to test, cycled over env blocks [-]
+
+    def build(self, env: Any) -> WalkEvaluator:
+        """Pin the env's robots to evaluation tiles, re-place them, and return the evaluator."""
+        return WalkEvaluator(self, env)
+
+
+class WalkEvaluator:
+    """Accumulates per-env tracking errors and distance over each env's first episode."""
+
+    def __init__(self, cfg: WalkEvaluationConfig, env: Any) -> None:
+        n = env.num_envs
+        curriculum = env.skill
+        self.curriculum = curriculum if hasattr(curriculum, "pin_tiles") else None
+        if self.curriculum is not None:  # rough terrain: pin the robots to the levels tested
+            terrain = curriculum.terrain
+            rows = terrain.num_rows
+            bad = [lv for lv in cfg.levels if not 0 <= lv < rows]
+            if bad or not cfg.levels:
+                raise ValueError(f"walk evaluation levels {bad or '()'} outside [0, {rows - 1}]")
+            cols = terrain.num_cols
+            i = torch.arange(n)
+            levels = torch.tensor(cfg.levels)[(i // cols) % len(cfg.levels)]
+            self.tiles = torch.stack([levels, i % cols], dim=-1)
+            curriculum.pin_tiles(self.tiles)
+            self.types = [terrain.tile_type(int(c)) for c in self.tiles[:, 1]]
+        else:  # flat ground: one "flat" row at level 0
+            self.tiles = torch.zeros(n, 2, dtype=torch.long)
+            self.types = ["flat"] * n
+        env.reset_envs(torch.arange(n))
+        self.start_xy_w = env.env_state.base_pos_w[:, :2].clone()
+        self.lin_error_sum = torch.zeros(n)
+        self.yaw_error_sum = torch.zeros(n)
+        self.steps = torch.zeros(n)
+        self.distance_m = torch.zeros(n)
+        self.fell = torch.zeros(n, dtype=torch.bool)
+
+    def on_step(self, env: Any, active: torch.Tensor, dones: torch.Tensor, extras: dict) -> None:
+        """Add this step's errors for envs still in their first episode (``active`` before it)."""
+        s = env.env_state
+        done = dones.bool().cpu()
+        alive = active & ~done  # the state of done envs is already their next episode's
+        lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
+        yaw = (s.base_ang_vel_b[:, 2] - s.command[:, 2]).abs()
+        self.lin_error_sum += torch.where(alive, lin, 0.0)
+        self.yaw_error_sum += torch.where(alive, yaw, 0.0)
+        self.steps += alive.float()
+        dist = (s.base_pos_w[:, :2] - self.start_xy_w).norm(dim=-1)
+        self.distance_m = torch.where(alive, dist, self.distance_m)
+        self.fell |= active & done & ~extras["time_outs"].bool().cpu()
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per (terrain type, level) with the mean figures of its envs."""
+        rows = []
+        steps = self.steps.clamp_min(1)
+        lin, yaw = self.lin_error_sum / steps, self.yaw_error_sum / steps
+        keys = sorted({(t, int(lv)) for t, lv in zip(self.types, self.tiles[:, 0], strict=True)})
+        for kind, level in keys:
+            mask = torch.tensor(
+                [
+                    t == kind and int(lv) == level
+                    for t, lv in zip(self.types, self.tiles[:, 0], strict=True)
+                ]
+            )
+            rows.append(
+                {
+                    "terrain": kind,
+                    "level": level,
+                    "envs": int(mask.sum()),
+                    "survival": float((~self.fell[mask]).float().mean()),
+                    "lin_vel_error_mps": float(lin[mask].mean()),
+                    "yaw_rate_error_rps": float(yaw[mask].mean()),
+                    "distance_m": float(self.distance_m[mask].mean()),
+                }
+            )
+        return rows
+
+    def finish(self, run_dir: str | Path) -> dict[str, Any]:
+        """Write ``walk_eval.json`` and ``walk_eval.png`` into ``run_dir``; return the figures."""
+        table = self.table()
+        steps = self.steps.clamp_min(1)
+        result = {
+            "survival": float((~self.fell).float().mean()),
+            "lin_vel_error_mps": float((self.lin_error_sum / steps).mean()),
+            "yaw_rate_error_rps": float((self.yaw_error_sum / steps).mean()),
+            "distance_m": float(self.distance_m.mean()),
+            "mean_level": float(self.tiles[:, 0].float().mean()),
+            "per_terrain_level": table,
+        }
+        run_dir = Path(run_dir)
+        atomic_write_json(run_dir / EVAL_JSON, result)
+        _plot(table, run_dir / EVAL_PLOT)
+        result["plot"] = str(run_dir / EVAL_PLOT)
+        return result
+
+
+def _plot(table: list[dict[str, Any]], path: Path) -> None:
+    """Survival, tracking errors and distance per terrain type against level."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metrics = (
+        ("survival", "survival [-]"),
+        ("lin_vel_error_mps", "lin. vel. error [m/s]"),
+        ("yaw_rate_error_rps", "yaw-rate error [rad/s]"),
+        ("distance_m", "distance [m]"),
+    )
+    fig, axes = plt.subplots(1, len(metrics), figsize=(16, 3.6))
+    for kind in sorted({r["terrain"] for r in table}):
+        rows = sorted((r for r in table if r["terrain"] == kind), key=lambda r: r["level"])
+        for ax, (key, _) in zip(axes, metrics, strict=True):
+            ax.plot([r["level"] for r in rows], [r[key] for r in rows], "o-", label=kind)
+    for ax, (_, label) in zip(axes, metrics, strict=True):
+        ax.set_xlabel("terrain level")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("walk evaluation, assistance off")
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=100)
+    plt.close(fig)
