@@ -29,7 +29,8 @@ runs on flat ground here), and the skill measure (e.g. walk's terrain levels) is
 
 The task's own termination and reward terms score the rollouts (same metrics as ``eval``) on an
 :class:`EnvState` of the sim2sim robots (feet, link-ground contacts, joint accelerations, foot
-timers, episode time, command, phase; no wrench), so the two columns compare like with like.
+timers, episode time, command, phase; no wrench), and the task's pushes are applied as in training
+(same interval and size, own generator), so the two columns compare like with like.
 """
 
 from __future__ import annotations
@@ -282,6 +283,34 @@ def load_bundle(run_dir: Path, task: TaskConfig) -> dict[str, Any]:
     return bundle
 
 
+class _Pushes:
+    """The task's velocity kicks (as the training env's): a timer per robot drawn from the push
+    interval; when it runs out, a uniform horizontal base velocity change of at most
+    ``velocity_xy_mps`` per axis. Own generator (seed + 1): the command draws stay the training
+    env's."""
+
+    def __init__(self, cfg, num_envs: int, seed: int) -> None:
+        self.cfg = cfg
+        self.rng = np.random.default_rng(seed + 1)
+        self.timer_s = self._intervals(num_envs)
+
+    def _intervals(self, m: int) -> np.ndarray:
+        low, high = self.cfg.interval_range_s
+        return low + (high - low) * self.rng.random(m)
+
+    def kicks(self, dt_s: float) -> np.ndarray:
+        """(N, 2) base velocity changes [m/s] for this policy step (zero for most robots)."""
+        out = np.zeros((self.timer_s.shape[0], 2))
+        if not self.cfg.enabled:
+            return out
+        self.timer_s -= dt_s
+        due = np.flatnonzero(self.timer_s <= 0)
+        v = self.cfg.velocity_xy_mps
+        out[due] = (2 * self.rng.random((due.size, 2)) - 1) * v
+        self.timer_s[due] = self._intervals(due.size)
+        return out
+
+
 def run_sim2sim(
     run_dir: str | Path,
     task: TaskConfig,
@@ -316,6 +345,7 @@ def run_sim2sim(
     last_action = np.zeros((n, 29))
     tau = np.zeros((n, 29))
     logic.advance(robots.state(logic, tau, last_action, last_action, 0.0), 0.0)
+    pushes = _Pushes(task.pushes, n, cfg.seed)
     history = [None] * n
     active = np.ones(n, dtype=bool)
     fell = np.zeros(n, dtype=bool)
@@ -337,9 +367,11 @@ def run_sim2sim(
             policy(obs.astype(np.float32), hist), -bundle["clip_actions"], bundle["clip_actions"]
         )
         target = default + scale * action
+        kicks = pushes.kicks(dt)
         for i, data in enumerate(datas):
             if not active[i]:
                 continue
+            data.qvel[0:2] += kicks[i]
             for _ in range(decimation):
                 tau[i] = np.clip(
                     kp * (target[i] - data.qpos[7:]) - kd * data.qvel[6:], -effort, effort
@@ -364,6 +396,7 @@ def run_sim2sim(
     return {
         "simulator": "sim2sim: 1 kHz x 20, URDF collision meshes, elliptic cone, Euler, explicit PD",
         "physics_dt_s": cfg.physics_dt_s,
+        "pushes": bool(task.pushes.enabled),
         "decimation": decimation,
         "num_envs": n,
         "num_steps": num_steps,

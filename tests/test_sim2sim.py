@@ -222,3 +222,17 @@ def test_sim2sim_link_contacts_end_an_episode(tmp_path) -> None:
     )
     fallen = run_sim2sim(tmp_path, lying, 5, Sim2SimConfig(num_envs=2))
     assert fallen["survival_fraction"] == 0.0 and fallen["mean_episode_length_steps"] == 1
+
+
+def test_sim2sim_pushes_the_robots_as_training_does() -> None:
+    from rl.sim2sim import _Pushes
+    from rl.tasks.config import PushConfig
+
+    cfg = PushConfig(interval_range_s=(3.0, 6.0), velocity_xy_mps=0.5)
+    pushes = _Pushes(cfg, 16, seed=0)
+    kicks = np.stack([pushes.kicks(0.02) for _ in range(500)])  # 10 s
+    per_robot = (np.abs(kicks).sum(-1) > 0).sum(0)
+    assert per_robot.min() >= 1 and per_robot.max() <= 3  # one kick every 3-6 s
+    assert np.abs(kicks).max() <= 0.5
+    off = _Pushes(PushConfig(enabled=False), 4, seed=0)
+    assert not np.any([off.kicks(0.02) for _ in range(500)])
