@@ -114,7 +114,7 @@ def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:
     axes = np.atleast_1d(axes)
     for run_dir, run in zip(run_dirs, runs, strict=True):
         rows = read_evals(run_dir)
-        label = f"{run['task']} {run['mode']} s{run['seed']}"
+        label = f"{run['run']} ({run['num_envs']} envs)"
         x, y = curve_arrays(rows, "survival_fraction")
         axes[0].plot(x / 1e6, y, marker=".", label=label)
         if run["metric"]:
