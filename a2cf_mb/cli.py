@@ -80,9 +80,11 @@ USER_ERROR_NAMES: tuple[str, ...] = (
     "InfeasibleBackflipError",
     "BackflipAuditError",
     "RunFolderBusyError",
+    "MissingExtraError",
 )
-"""Outcomes of a valid run that the user resolves by changing the problem, or by waiting for the
-process that writes the same run folder (matched by class name so this module does not import the
+"""Outcomes of a valid run that the user resolves by changing the problem, installing an extra
+(``MissingExtraError``: the message says which), or by waiting for the process that writes the
+same run folder (matched by class name so this module does not import the
 solvers or the trainer)."""
 
 

@@ -60,6 +60,7 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
         "num_envs": cfg.env.num_envs,
         "target": task.target.describe(),
         "metric": metric,
+        "max_metric": task.target.max_metric if metric else None,
         "evaluations": len(rows),
         "evaluated_env_steps": last["env_steps"] if last else 0,
         "reached_at_env_steps": first["env_steps"] if first else None,
@@ -125,8 +126,7 @@ def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:
     axes[0].set_ylim(-0.02, 1.02)
     for ax, metric in zip(axes[1:], metrics, strict=True):
         ax.set_ylabel(metric)
-        target = next(r["target"] for r in runs if r["metric"] == metric)
-        bound = float(target.rsplit("<=", 1)[1])
+        bound = next(r["max_metric"] for r in runs if r["metric"] == metric)
         ax.axhline(bound, color="k", ls="--", lw=0.8)
     for ax in axes:
         ax.set_xlabel("env steps [M]")

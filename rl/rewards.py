@@ -119,13 +119,20 @@ def link_ground_contact(s: EnvState, bodies: tuple[str, ...] = ()) -> torch.Tens
     return _contacts(s, bodies).sum(-1).to(torch.float32)
 
 
+class MissingContactSensorError(ValueError):
+    """A term names links that have no ground-contact sensor in this scene (e.g. link collision
+    primitives switched off)."""
+
+
 def _contacts(s: EnvState, bodies: tuple[str, ...]) -> torch.Tensor:
     if not bodies:
         return s.body_ground_contact
     names = s.contact_body_names
     missing = [b for b in bodies if b not in names]
     if missing:
-        raise ValueError(f"no ground-contact sensor for {missing}; bodies with one: {names}")
+        raise MissingContactSensorError(
+            f"no ground-contact sensor for {missing}; bodies with one: {names}"
+        )
     return s.body_ground_contact[:, [names.index(b) for b in bodies]]
 
 

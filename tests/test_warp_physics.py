@@ -238,6 +238,18 @@ def test_missing_mujoco_warp_names_the_extra(monkeypatch) -> None:
         make_env(quiet(STAND), 1, backend="warp")
 
 
+def test_the_cli_names_the_missing_extra_in_one_line(monkeypatch, tmp_path, capsys) -> None:
+    from a2cf_mb.cli import main as cli_main
+
+    monkeypatch.setitem(sys.modules, "mujoco_warp", None)
+    args = ["train", "--task", "stand", "--backend", "warp", "--num-envs", "2", "--iterations",
+            "1", "--out", str(tmp_path), "--run-name", "warp"]  # fmt: skip
+    assert cli_main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a2cf-mb[gpu]" in err and "Traceback" not in err
+    assert not (tmp_path / "warp").exists()  # nothing half-written
+
+
 def test_backend_and_device_are_checked_and_have_a_short_flag() -> None:
     with pytest.raises(ValueError, match="mujoco, warp|'mujoco', 'warp'"):
         EnvConfig(backend="bullet")

@@ -35,6 +35,7 @@ from rl.envs.config import BACKENDS
 from rl.envs.model import CONTROL_SPEC
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task, make_env
+from rl.rewards import MissingContactSensorError
 from robots import g1
 
 
@@ -109,6 +110,34 @@ def _time_physics(env: G1VecEnv, runner: rollout.Rollout, datas, states, control
     return time.perf_counter() - start
 
 
+def _warm_env(
+    cfg: EnvBenchConfig, num_envs: int, link_collisions: bool, **env_overrides
+) -> tuple[G1VecEnv | None, torch.Generator, dict | None]:
+    """The benchmark's env after its warm-up steps (the first step compiles Warp's kernels), or
+    a ``skipped`` figure when the task's terms read link contacts that the scene lacks (e.g. walk
+    ends on pelvis contact, links off)."""
+    task = get_task(cfg.task)
+    task = dataclasses.replace(
+        task, scene=dataclasses.replace(task.scene, link_collisions=link_collisions)
+    )
+    env = make_env(task, num_envs, seed=cfg.seed, **env_overrides)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    try:
+        env.step(_random_actions(env, cfg, generator))
+    except MissingContactSensorError as err:
+        env.close()
+        if link_collisions:
+            raise
+        return (
+            None,
+            generator,
+            {"skipped": f"task '{cfg.task}' needs the link collision primitives ({err})"},
+        )
+    for _ in range(cfg.warmup_steps):
+        env.step(_random_actions(env, cfg, generator))
+    return env, generator, None
+
+
 def measure_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = True) -> dict:
     """Figures for one batch size.
 
@@ -116,22 +145,9 @@ def measure_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool = Tru
     processes on this shared machine hits both alike; each repeat gives one rate per side and the
     best repeat of each is reported.
     """
-    task = get_task(cfg.task)
-    task = dataclasses.replace(
-        task, scene=dataclasses.replace(task.scene, link_collisions=link_collisions)
-    )
-    env = make_env(task, num_envs, num_threads=cfg.num_threads, seed=cfg.seed)
-    generator = torch.Generator().manual_seed(cfg.seed)
-    try:
-        env.step(_random_actions(env, cfg, generator))
-    except ValueError as err:
-        env.close()
-        if link_collisions or "no ground-contact sensor" not in str(err):
-            raise
-        # the task's terms read link contacts (e.g. walk ends on pelvis contact): no such env
-        return {"skipped": f"task '{cfg.task}' needs the link collision primitives ({err})"}
-    for _ in range(cfg.warmup_steps):
-        env.step(_random_actions(env, cfg, generator))
+    env, generator, skipped = _warm_env(cfg, num_envs, link_collisions, num_threads=cfg.num_threads)
+    if skipped:
+        return skipped
     states, controls = _record(env, cfg, generator)
     datas = [mujoco.MjData(env.model) for _ in range(env.num_threads)]
     env_rate = physics = ceiling = 0.0
@@ -174,22 +190,12 @@ def measure_warp_size(num_envs: int, cfg: EnvBenchConfig, link_collisions: bool 
     everything included) and ``physics`` (``WarpPhysics.step`` alone, controls held), timed in
     alternating chunks, best of ``repeats``. The first step compiles or loads Warp's kernels and
     is not timed."""
-    task = get_task(cfg.task)
-    task = dataclasses.replace(
-        task, scene=dataclasses.replace(task.scene, link_collisions=link_collisions)
+    env, generator, skipped = _warm_env(
+        cfg, num_envs, link_collisions, backend="warp", device=cfg.device
     )
-    env = make_env(task, num_envs, backend="warp", device=cfg.device, seed=cfg.seed)
-    generator = torch.Generator().manual_seed(cfg.seed)
+    if skipped:
+        return skipped
     physics = env.physics
-    try:
-        env.step(_random_actions(env, cfg, generator))
-    except ValueError as err:
-        env.close()
-        if link_collisions or "no ground-contact sensor" not in str(err):
-            raise
-        return {"skipped": f"task '{cfg.task}' needs the link collision primitives ({err})"}
-    for _ in range(cfg.warmup_steps):
-        env.step(_random_actions(env, cfg, generator))
     env_rate = physics_rate = 0.0
     for _ in range(cfg.repeats):
         env_s = physics_s = 0.0

@@ -42,13 +42,17 @@ DERIVED_FIELDS = ("body_subtreemass", "body_invweight0", "dof_invweight0", "actu
 GPU_EXTRA_HINT = "install the gpu extra: pip install 'a2cf-mb[gpu]' (or -e '.[gpu]' in a checkout)"
 
 
+class MissingExtraError(ModuleNotFoundError):
+    """An optional dependency (an extra of a2cf-mb) is not installed; the message names it."""
+
+
 def import_warp() -> tuple[Any, Any]:
     """``(warp, mujoco_warp)``, or an error naming the extra to install."""
     try:
         import mujoco_warp as mjw
         import warp as wp
     except ImportError as err:
-        raise ModuleNotFoundError(
+        raise MissingExtraError(
             f"EnvConfig.backend='warp' needs mujoco-warp, which cannot be imported ({err}); "
             f"{GPU_EXTRA_HINT}, or use --env-backend mujoco."
         ) from err

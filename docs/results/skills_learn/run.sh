@@ -7,16 +7,21 @@ set -euo pipefail
 OUT=${OUT:-runs/skills_learn}
 SEED=${SEED:-0}
 export OMP_NUM_THREADS=1
-# stand: 512 envs x 24 steps, 250 iterations = 3.07 M env steps (target: >= 90 % survival)
-a2cf-mb train --task stand --mode baseline --num-envs 512 --seed "$SEED" --env-num-threads 1 \
-  --iterations 250 --save-interval 10 --out "$OUT" --run-name "stand_baseline_s$SEED"
-# dance: 128 envs x 24 steps, 1628 iterations = 5.0 M env steps (target: skill error < 0.16 rad)
+# stand: 128 envs x 24 steps, 977 iterations = 3.0 M env steps (target: >= 90 % survival); the
+# batch-size comparison ran the same with --num-envs 512 --iterations 250 (run stand_baseline_s0)
+a2cf-mb train --task stand --mode baseline --num-envs 128 --seed "$SEED" --env-num-threads 1 \
+  --iterations 977 --save-interval 40 --eval-interval 40 --out "$OUT" --run-name "stand_baseline_n128_s$SEED"
+# dance: 128 envs x 24 steps (target: skill error < 0.16 rad). Budget 5 M = 1628 iterations; the
+# session's runs stopped at 525 (seed 0, eval every 80) and 651 / 658 iterations (seeds 1, 2, eval
+# every 40): stop a run with Ctrl-C, then `a2cf-mb train --resume RUN --iterations K` exports it.
 a2cf-mb train --task dance --mode baseline --num-envs 128 --seed "$SEED" --env-num-threads 1 \
-  --iterations 1628 --save-interval 40 --eval-interval 80 --out "$OUT" --run-name "dance_baseline_s$SEED"
+  --iterations 1628 --save-interval 40 --eval-interval 40 --out "$OUT" --run-name "dance_baseline_s$SEED"
+# final policies: a2cf-mb eval RUN --num-envs 32 --sim2sim, and (dance) --num-envs 128 --seed 2
 # walk-flat: 512 envs x 24 steps, 2500 iterations = 30.7 M env steps (target: >= 90 % survival
-# and mean velocity error <= 0.25 m/s)
+# and mean velocity error <= 0.25 m/s); the session's run stopped at 512 iterations (6.3 M)
 a2cf-mb train --task walk-flat --mode baseline --num-envs 512 --seed "$SEED" --env-num-threads 1 \
   --iterations 2500 --save-interval 10 --out "$OUT" --run-name "walkflat_baseline_s$SEED"
 # runs trained without evaluations during training: evaluate their kept checkpoints
-for run in "$OUT"/*; do a2cf-mb eval-curve "$run"; done
-python docs/results/skills_learn/summarise.py "$OUT"/* --out docs/results/skills_learn
+a2cf-mb eval-curve "$OUT/stand_baseline_s$SEED"  # the 512-env comparison run, every kept checkpoint
+a2cf-mb eval-curve "$OUT/walkflat_baseline_s$SEED" --every-iterations 50
+bash docs/results/skills_learn/collect.sh "$OUT"
