@@ -24,8 +24,18 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
   needed in more than ``1 - force_quantile`` of the states.
 - The force rule runs only for phases visited in the iteration (no sample, no measurement); the
   skill-learned decay runs for every phase, so all bounds go to zero once the skill is learned.
-- ``isSkillLearned`` is ``skill_progress >= skill_learned_progress`` (1.0: the task's target),
-  where ``skill_progress`` is the iteration's mean of the env's ``extras["skill_progress"]``.
+- ``isSkillLearned`` is ``progress >= skill_learned_progress``. With ``skill_measure "helped"``
+  (the paper) ``progress`` is the iteration's mean of the env's ``extras["skill_progress"]``, the
+  skill of the helped envs; with ``"alone"`` (the default) it is the skill of the *alone envs*:
+  the share ``alone_share`` of the envs (fixed env ids) that never get help, whose finished
+  episodes feed a skill window of their own (``alone_window`` episodes,
+  ``extras["skill_progress_alone"]``). Measured on dance (docs/training.md, "The lifecycle"):
+  helped progress reached 0.8-0.9 while the policy alone survived 0 %, so a helped trigger at 1.0
+  never fired and a lower one would have taken the help from a policy that could not stand
+  without it; the alone envs measure what the curriculum needs to know, and give the motion
+  policy episodes on its own while the help is on.
+- The alone envs' wrench is zero and they are left out of the force rule's statistics (|F| is the
+  help given where help is given).
 - The less-assist reward is switched on (and stays on) the first iteration with
   ``skill_progress >= less_assist_progress`` (0.8, the paper's 80 %).
 - Assistance is switched off (and stays off) the first iteration in which the applied wrench is
@@ -60,10 +70,23 @@ def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:
 
 
 FORCE_MEASURES: tuple[str, ...] = ("mean", "quantile")
+SKILL_MEASURES: tuple[str, ...] = ("alone", "helped")
+"""Whose skill triggers the skill-learned decay (:class:`CurriculumConfig`.skill_measure)."""
 """What ``|F_k|`` of the force rule is (:class:`CurriculumConfig`.force_measure)."""
 
 RATIO_BINS = 200
 """Histogram bins of the per-sample ratio ``|F| / |eta|`` in [0, 1] (quantile resolution 0.005)."""
+
+
+PAPER_RULES: dict[str, Any] = {
+    "skill_measure": "helped",
+    "skill_learned_progress": 1.0,
+    "alone_share": 0.0,
+}
+"""The :class:`CurriculumConfig` fields that give the paper's Algorithm 1 exactly (the other
+defaults are the paper's): ``CurriculumConfig(**PAPER_RULES)``, on the command line
+``--curriculum-skill-measure helped --curriculum-skill-learned-progress 1.0
+--curriculum-alone-share 0``."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +96,11 @@ class CurriculumConfig:
     epsilon: float = 0.5  # tolerance band on |F|/|eta| before the bound moves [-]
     delta: float = 0.2  # relative bound change per update [-]
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
-    less_assist_progress: float = 0.8  # skill progress that switches on the less-assist reward [-]
-    skill_learned_progress: float = 1.0  # skill progress at which the skill counts as learned [-]
+    less_assist_progress: float = 0.8  # helped skill progress that switches on the less-assist reward [-]
+    skill_learned_progress: float = 0.8  # progress of skill_measure at which the skill counts as learned (the paper: 1.0 of the helped skill) [-]
+    skill_measure: str = "alone"  # whose skill triggers the skill-learned decay: "alone" (the alone envs) or "helped" (the paper) [-]
+    alone_share: float = 0.25  # share of the envs that never get help (fixed env ids); 0: the paper [-]
+    alone_window: int = 64  # finished episodes in the alone envs' skill window [-]
     force_measure: str = "mean"  # |F_k| of the force rule: "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
     force_quantile: float = (
         0.9  # quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]
@@ -96,6 +122,20 @@ class CurriculumConfig:
             raise ValueError(
                 f"curriculum force_quantile must be in (0, 1), got {self.force_quantile}"
             )
+        if self.skill_measure not in SKILL_MEASURES:
+            raise ValueError(
+                f"curriculum skill_measure must be one of {SKILL_MEASURES}, got "
+                f"'{self.skill_measure}'"
+            )
+        if not 0.0 <= self.alone_share < 1.0:
+            raise ValueError(f"curriculum alone_share must be in [0, 1), got {self.alone_share}")
+        if self.skill_measure == "alone" and self.alone_share == 0.0:
+            raise ValueError(
+                "curriculum skill_measure 'alone' needs alone envs: set alone_share > 0, or "
+                "skill_measure 'helped' (the paper)"
+            )
+        if self.alone_window < 1:
+            raise ValueError(f"curriculum alone_window must be >= 1, got {self.alone_window}")
         if self.min_phase_samples < 1:
             raise ValueError(
                 f"curriculum min_phase_samples must be >= 1, got {self.min_phase_samples}"
@@ -162,7 +202,8 @@ class CurriculumUpdate:
     eta: list[list[float]]  # (P, 6) bounds after the update [N, Nm]
     applied_norm: list[float]  # (P,) measured mean applied-wrench norm [N, Nm mixed]
     visited: list[bool]  # (P,) phases that had samples [-]
-    skill_progress: float  # measured skill progress [-]
+    skill_progress: float  # measured skill progress of the helped envs [-]
+    alone_progress: float | None  # skill progress of the alone envs (None: no alone envs) [-]
     skill_learned: bool  # extra decay applied [-]
     assist_enabled: bool  # assistance still on after this step [-]
     less_assist_reward: bool  # less-assist reward on after this step [-]
@@ -207,6 +248,7 @@ class AssistCurriculum:
         applied_norm: torch.Tensor,
         visited: torch.Tensor,
         skill_progress: float,
+        alone_progress: float | None = None,
     ) -> CurriculumUpdate:
         """Apply Algorithm 1 and the two switches after one training iteration.
 
@@ -214,7 +256,9 @@ class AssistCurriculum:
             iteration: index of the iteration the rollout belongs to.
             applied_norm: (P,) mean applied-wrench norm per phase over the rollout.
             visited: (P,) bool, phases with samples in the rollout.
-            skill_progress: the task's skill measure (>= 1 learned, >= 0.8 less-assist reward).
+            skill_progress: the helped envs' skill measure (the less-assist switch; the decay
+                under ``skill_measure "helped"``).
+            alone_progress: the alone envs' skill measure (the decay under ``"alone"``).
         """
         applied_norm = torch.as_tensor(applied_norm, dtype=torch.float32).reshape(-1)
         visited = torch.as_tensor(visited, dtype=torch.bool).reshape(-1)
@@ -225,7 +269,13 @@ class AssistCurriculum:
             )
         if not torch.isfinite(applied_norm).all():
             raise ValueError(f"applied wrench norm is not finite: {applied_norm}")
-        skill_learned = skill_progress >= self.cfg.skill_learned_progress
+        if self.cfg.skill_measure == "alone":
+            if alone_progress is None:
+                raise ValueError("curriculum skill_measure 'alone' needs the alone envs' progress")
+            progress = alone_progress
+        else:
+            progress = skill_progress
+        skill_learned = progress >= self.cfg.skill_learned_progress
         if self.assist_enabled:
             self.eta = update_bound(
                 self.eta, applied_norm, visited, skill_learned, self.cfg.epsilon, self.cfg.delta
@@ -247,6 +297,7 @@ class AssistCurriculum:
             applied_norm=applied_norm.tolist(),
             visited=visited.tolist(),
             skill_progress=float(skill_progress),
+            alone_progress=None if alone_progress is None else float(alone_progress),
             skill_learned=bool(skill_learned),
             assist_enabled=self.assist_enabled,
             less_assist_reward=self.less_assist_reward,
@@ -400,14 +451,23 @@ class CurriculumEvent:
         self.stats = AssistStatistics(curriculum.num_phases)
         self.step_in_iteration = 0
         self.skill_sum = 0.0
+        self.alone_sum = 0.0
         self.history: list[dict[str, Any]] = []
         """One row per update (the curriculum log), checkpointed with the run."""
 
-    def on_step(self, assist: dict[str, torch.Tensor], skill_progress: float) -> dict | None:
-        """Record one env step; at the end of a rollout return the update row, else None."""
+    def on_step(
+        self,
+        assist: dict[str, torch.Tensor],
+        skill_progress: float,
+        alone_progress: float | None = None,
+    ) -> dict | None:
+        """Record one env step (``assist``: the helped envs' rows); at the end of a rollout
+        return the update row, else None."""
         if self.curriculum.assist_enabled:
             self.stats.add(assist)
         self.skill_sum += float(skill_progress)
+        if alone_progress is not None:
+            self.alone_sum += float(alone_progress)
         self.step_in_iteration += 1
         if self.step_in_iteration < self.steps_per_iteration:
             return None
@@ -419,7 +479,8 @@ class CurriculumEvent:
                     self.stats.ratio_hist.reshape(-1),
                     self.stats.axis_abs_sum.reshape(-1),
                     torch.tensor(
-                        [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum, 1.0],
+                        [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum,
+                         self.alone_sum, 1.0],  # fmt: skip
                         dtype=torch.float64,
                     ),
                 ]
@@ -430,7 +491,7 @@ class CurriculumEvent:
         hist_end = 2 * p + p * RATIO_BINS
         hist = sums[2 * p : hist_end].reshape(p, RATIO_BINS)
         axis_abs = sums[hist_end : hist_end + 6 * p].reshape(p, 6) / count.clamp(min=1.0)[:, None]
-        force_sum, steps, skill_sum, processes = sums[hist_end + 6 * p :].tolist()
+        force_sum, steps, skill_sum, alone_sum, processes = sums[hist_end + 6 * p :].tolist()
         # A phase seen in only a few samples gives a noisy |F|; below min_phase_samples it
         # counts as unvisited (keeps its bound): rare phases are not shrunk by noise.
         visited = count >= self.curriculum.cfg.min_phase_samples
@@ -440,7 +501,12 @@ class CurriculumEvent:
         eta_norm = torch.linalg.vector_norm(self.curriculum.eta, dim=-1)
         applied_norm = mean_norm if cfg.force_measure == "mean" else ratio_q * eta_norm
         skill_progress = skill_sum / (processes * self.steps_per_iteration)
-        update = self.curriculum.update(self.iteration, applied_norm, visited, skill_progress)
+        alone_progress = (
+            alone_sum / (processes * self.steps_per_iteration) if alone_progress is not None else None
+        )
+        update = self.curriculum.update(
+            self.iteration, applied_norm, visited, skill_progress, alone_progress
+        )
         row = {
             **update.as_dict(),
             "applied_force_n": force_sum / max(steps, 1.0),
@@ -452,7 +518,7 @@ class CurriculumEvent:
         self.iteration += 1
         self.stats.reset()
         self.step_in_iteration = 0
-        self.skill_sum = 0.0
+        self.skill_sum = self.alone_sum = 0.0
         return row
 
     def state_dict(self) -> dict[str, Any]:
@@ -462,6 +528,7 @@ class CurriculumEvent:
             "iteration": self.iteration,
             "step_in_iteration": self.step_in_iteration,
             "skill_sum": self.skill_sum,
+            "alone_sum": self.alone_sum,
             "stats": self.stats.state_dict(),
             "history": list(self.history),
         }
@@ -472,5 +539,6 @@ class CurriculumEvent:
         self.iteration = int(state["iteration"])
         self.step_in_iteration = int(state["step_in_iteration"])
         self.skill_sum = float(state["skill_sum"])
+        self.alone_sum = float(state.get("alone_sum", 0.0))  # checkpoints before the alone envs
         self.stats.load_state_dict(state["stats"])
         self.history = list(state["history"])

@@ -165,6 +165,7 @@ class RunLogger(Logger):
                 "mean_episode_return": float(np.mean(self.rewbuffer)) if self.rewbuffer else None,
                 "mean_episode_length": float(np.mean(self.lenbuffer)) if self.lenbuffer else None,
                 "skill_progress": _mean_of(extras, "Episode/skill_progress"),
+                "skill_progress_alone": _mean_of(extras, "Episode/skill_progress_alone"),
                 "applied_force_n": force if force is not None else 0.0,
                 "eta_norm": torch.linalg.vector_norm(cur.eta, dim=-1).tolist() if cur else None,
                 "assist_enabled": bool(cur and cur.assist_enabled),

@@ -7,6 +7,7 @@ import torch
 
 from optimal_control.bounds import PAPER_ETA0
 from rl.curriculum import (
+    PAPER_RULES,
     AssistCurriculum,
     AssistStatistics,
     CurriculumConfig,
@@ -20,6 +21,7 @@ from rl.tasks.stand import STAND
 
 ETA0 = torch.tensor([[40.0, 40.0, 10.0, 40.0, 40.0, 40.0], [40.0, 40.0, 100.0, 30.0, 30.0, 30.0]])
 NORM0 = torch.linalg.vector_norm(ETA0, dim=-1)
+PAPER = CurriculumConfig(**PAPER_RULES)  # Algorithm 1 as the paper states it
 BOTH = torch.tensor([True, True])
 
 
@@ -60,7 +62,7 @@ def test_update_bound_is_per_phase_and_skips_unvisited() -> None:
     torch.testing.assert_close(eta, 0.8 * ETA0)  # the skill decay reaches every phase
 
 
-def test_curriculum_defaults_are_the_papers() -> None:
+def test_curriculum_band_and_rates_are_the_papers() -> None:
     cfg = CurriculumConfig()
     assert (cfg.epsilon, cfg.delta, cfg.negligible_force_n, cfg.less_assist_progress) == (
         0.5,
@@ -71,7 +73,7 @@ def test_curriculum_defaults_are_the_papers() -> None:
 
 
 def test_less_assist_reward_switches_on_at_80_percent_and_stays_on() -> None:
-    cur = AssistCurriculum(ETA0)
+    cur = AssistCurriculum(ETA0, PAPER)
     half = 0.8 * NORM0  # inside the band: bounds unchanged
     cur.update(0, half, BOTH, skill_progress=0.79)
     assert not cur.less_assist_reward
@@ -83,7 +85,7 @@ def test_less_assist_reward_switches_on_at_80_percent_and_stays_on() -> None:
 
 
 def test_negligible_force_switches_assistance_off_for_good() -> None:
-    cur = AssistCurriculum(ETA0)
+    cur = AssistCurriculum(ETA0, PAPER)
     update = cur.update(0, torch.tensor([0.05, 0.09]), BOTH, skill_progress=0.0)
     assert not update.assist_enabled and not cur.assist_enabled
     eta_off = cur.eta.clone()
@@ -93,7 +95,7 @@ def test_negligible_force_switches_assistance_off_for_good() -> None:
 
 
 def test_force_above_threshold_keeps_assistance() -> None:
-    cur = AssistCurriculum(ETA0)
+    cur = AssistCurriculum(ETA0, PAPER)
     cur.update(0, torch.tensor([0.05, 0.2]), BOTH, skill_progress=0.0)
     assert cur.assist_enabled
     cur.update(1, torch.tensor([0.05, 0.0]), torch.tensor([True, False]), skill_progress=0.0)
@@ -101,7 +103,7 @@ def test_force_above_threshold_keeps_assistance() -> None:
 
 
 def test_skill_learned_decay_drives_bounds_to_zero_and_assistance_off() -> None:
-    cur = AssistCurriculum(ETA0)
+    cur = AssistCurriculum(ETA0, PAPER)
     steps = 0
     while cur.assist_enabled:
         # the agent uses its whole budget (inside the band): only the extra decay shrinks eta
@@ -114,15 +116,15 @@ def test_skill_learned_decay_drives_bounds_to_zero_and_assistance_off() -> None:
 
 
 def test_state_dict_round_trip() -> None:
-    cur = AssistCurriculum(ETA0)
+    cur = AssistCurriculum(ETA0, PAPER)
     cur.update(0, 0.1 * NORM0, BOTH, skill_progress=0.9)
     state = cur.state_dict()
-    other = AssistCurriculum(ETA0)
+    other = AssistCurriculum(ETA0, PAPER)
     other.load_state_dict(state)
     torch.testing.assert_close(other.eta, cur.eta)
     assert other.less_assist_reward and other.assist_enabled and other.num_updates == 1
     with pytest.raises(ValueError, match="another task"):
-        AssistCurriculum(ETA0[:1]).load_state_dict(state)
+        AssistCurriculum(ETA0[:1], PAPER).load_state_dict(state)
 
 
 def test_bad_inputs_are_reported() -> None:
@@ -133,7 +135,7 @@ def test_bad_inputs_are_reported() -> None:
     with pytest.raises(ValueError, match="epsilon"):
         CurriculumConfig(epsilon=1.5)
     with pytest.raises(ValueError, match="2 phases"):
-        AssistCurriculum(ETA0).update(0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0)
+        AssistCurriculum(ETA0, PAPER).update(0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0)
     with pytest.raises(ValueError, match="no initial-bound row"):
         paper_bound_rows("juggle")
 
@@ -171,7 +173,7 @@ def _step_extras(phase: list[int], force: float) -> dict:
 
 def test_curriculum_event_updates_once_per_rollout() -> None:
     """In-env Algorithm 1: statistics of exactly ``steps_per_iteration`` steps, one update each."""
-    event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=3)
+    event = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
     # Phase 0 gets a small wrench (shrink), phase 1 one far above its bound (grow).
     rows = [event.on_step(_step_extras([0, 1], 0.0), 0.1) for _ in range(2)]
     assert rows == [None, None]
@@ -185,14 +187,14 @@ def test_curriculum_event_updates_once_per_rollout() -> None:
     assert event.step_in_iteration == 0 and event.stats.steps == 0
     # The next rollout starts from the new bounds; state round-trips.
     state = event.state_dict()
-    other = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=3)
+    other = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
     other.load_state_dict(state)
     torch.testing.assert_close(other.curriculum.eta, event.curriculum.eta)
     assert other.history == event.history and other.iteration == 1
 
 
 def test_curriculum_event_ignores_steps_while_assistance_is_off() -> None:
-    curriculum = AssistCurriculum(ETA0)
+    curriculum = AssistCurriculum(ETA0, PAPER)
     curriculum.assist_enabled = False
     event = CurriculumEvent(curriculum, steps_per_iteration=2)
     event.on_step(_step_extras([0, 0], 50.0), 1.0)
@@ -207,7 +209,7 @@ def _distributed_worker(rank: int, world: int, port: int, queue) -> None:
     dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank,
                             world_size=world)  # fmt: skip
     try:
-        event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=1)
+        event = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
         # Rank 0 sees a tiny wrench in phase 0 only, rank 1 a large one in phase 0 and phase 1.
         force = [1.0, 200.0][rank]
         phases = [[0, 0], [0, 1]][rank]
@@ -248,14 +250,14 @@ def test_curriculum_statistics_are_reduced_across_processes() -> None:
 def test_rarely_visited_phases_keep_their_bound_with_min_phase_samples() -> None:
     """Option against a measured failure (backflip): a phase visited by a handful of samples
     shrinks on noise, and the squashed wrench can never exceed its bound to grow it back."""
-    cfg = CurriculumConfig(min_phase_samples=3)
+    cfg = CurriculumConfig(min_phase_samples=3, **PAPER_RULES)
     event = CurriculumEvent(AssistCurriculum(ETA0, cfg), steps_per_iteration=1)
     row = event.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)  # phase 1: one sample
     assert row["visited"] == [True, False]
     torch.testing.assert_close(torch.tensor(row["eta"][1]), ETA0[1])
     torch.testing.assert_close(torch.tensor(row["eta"][0]), ETA0[0] * 0.8)
     # with the paper's rule the single sample counts and shrinks phase 1 too
-    paper = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=1)
+    paper = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
     torch.testing.assert_close(
         torch.tensor(paper.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)["eta"][1]), ETA0[1] * 0.8
     )
@@ -293,9 +295,9 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
     it uses all of it where help is needed; the quantile measure holds the bound while more than
     10 % of the states need it, and shrinks it once they do not."""
     eta0 = ETA0[:1]
-    paper = CurriculumEvent(AssistCurriculum(eta0), steps_per_iteration=1)
+    paper = CurriculumEvent(AssistCurriculum(eta0, PAPER), steps_per_iteration=1)
     quant = CurriculumEvent(
-        AssistCurriculum(eta0, CurriculumConfig(force_measure="quantile")), steps_per_iteration=1
+        AssistCurriculum(eta0, CurriculumConfig(force_measure="quantile", **PAPER_RULES)), steps_per_iteration=1
     )
     for _ in range(5):
         p_row = paper.on_step(_as_needed_extras(100, 20, paper.curriculum.eta[0]), 0.0)
@@ -319,3 +321,27 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
         CurriculumConfig(force_measure="median")
     with pytest.raises(ValueError, match="force_quantile"):
         CurriculumConfig(force_quantile=1.0)
+
+
+def test_alone_measure_triggers_the_decay_and_helped_progress_does_not() -> None:
+    cur = AssistCurriculum(ETA0)  # the default: the alone envs' skill decides
+    assert cur.cfg.skill_measure == "alone" and cur.cfg.alone_share > 0
+    mid = 0.7 * NORM0  # inside the band: the force rule holds the bound
+    cur.update(0, mid, BOTH, skill_progress=1.5, alone_progress=0.1)  # helped skill only
+    torch.testing.assert_close(cur.eta, ETA0)
+    cur.update(1, mid, BOTH, skill_progress=0.2, alone_progress=0.8)
+    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+    with pytest.raises(ValueError, match="alone envs' progress"):
+        cur.update(2, mid, BOTH, skill_progress=0.2)
+    with pytest.raises(ValueError, match="alone_share > 0"):
+        CurriculumConfig(alone_share=0.0)
+    with pytest.raises(ValueError, match="skill_measure"):
+        CurriculumConfig(skill_measure="both")
+
+
+def test_event_averages_the_alone_progress_over_the_rollout() -> None:
+    event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=2)
+    zero = {"applied_wrench": torch.zeros(2, 6), "phase": torch.zeros(2, dtype=torch.long)}
+    assert event.on_step(zero, skill_progress=0.0, alone_progress=0.6) is None
+    row = event.on_step(zero, skill_progress=0.0, alone_progress=1.0)
+    assert row["alone_progress"] == pytest.approx(0.8) and row["skill_learned"]

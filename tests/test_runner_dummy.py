@@ -12,7 +12,7 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from rl.agents.modes import get_mode
-from rl.curriculum import AssistCurriculum, CurriculumEvent
+from rl.curriculum import PAPER_RULES, AssistCurriculum, CurriculumConfig, CurriculumEvent
 from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, A2CFRunner, rsl_rl_config
 from rl.train_config import ModelConfig, PPOConfig, TrainConfig
 
@@ -97,7 +97,7 @@ CFG = TrainConfig(
 def make_runner(run_dir, total: int, keep: int = 2) -> tuple[DummyAssistEnv, A2CFRunner]:
     torch.manual_seed(0)
     env = DummyAssistEnv()
-    env.attach_curriculum(CurriculumEvent(AssistCurriculum(ETA0), STEPS))
+    env.attach_curriculum(CurriculumEvent(AssistCurriculum(ETA0, CurriculumConfig(**PAPER_RULES)), STEPS))
     runner = A2CFRunner(env, rsl_rl_config(CFG, get_mode("a2cf")), run_dir, get_mode("a2cf"),
                         total_iterations=total, keep_interval=keep)  # fmt: skip
     return env, runner

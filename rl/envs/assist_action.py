@@ -55,6 +55,7 @@ class AssistAction:
         self.phase_names, self.less_assist_weight = phase_names, less_assist_weight
         self.applied_wrench = torch.zeros(num_envs, WRENCH_DIM)  # F of this step, 0 after a reset
         self.mask = torch.ones(num_envs, WRENCH_DIM)  # the mask of this step
+        self.alone = torch.zeros(num_envs, dtype=torch.bool)  # envs that never get help
         self.curriculum_event: CurriculumEvent | None = None
         self.step_extras: dict[str, torch.Tensor] = {}  # extras["assist"] of the last step
 
@@ -83,6 +84,8 @@ class AssistAction:
         """Run Algorithm 1 from this part's statistics and apply its current state now; ``None``
         detaches it (the last bounds stay)."""
         self.curriculum_event = event
+        share = event.curriculum.cfg.alone_share if event is not None else 0.0
+        self.alone = torch.arange(self.alone.numel()) < round(share * self.alone.numel())
         if event is not None:
             if event.curriculum.num_phases != len(self.phase_names):
                 raise ValueError(
@@ -100,6 +103,8 @@ class AssistAction:
     def apply(self, raw: torch.Tensor, phase: torch.Tensor) -> torch.Tensor:
         """F (N, 6) in the heading frame for raw head outputs (N, 6) of envs in ``phase`` (N,)."""
         wrench, bound, self.mask = self.settings.wrench(raw, phase)
+        if self.alone.any():
+            wrench[self.alone] = 0.0
         self.applied_wrench = wrench.clone()
         self.step_extras = {"applied_wrench": wrench, "bound": bound, "phase": phase}
         return wrench
@@ -129,18 +134,25 @@ class AssistAction:
             "Assist/torque_norm_nm": float(wrench[:, 3:].norm(dim=-1).mean()),
         }
 
-    def curriculum_step(self, skill_progress: float) -> dict[str, float]:
-        """Hand this step to the curriculum; at a rollout's end apply its update and return the
-        update's log (else ``{}``)."""
+    def curriculum_step(
+        self, skill_progress: float, alone_progress: float | None = None
+    ) -> dict[str, float]:
+        """Hand this step (the helped envs' rows) to the curriculum; at a rollout's end apply its
+        update and return the update's log (else ``{}``)."""
         if self.curriculum_event is None:
             return {}
-        row = self.curriculum_event.on_step(self.step_extras, skill_progress)
+        extras = self.step_extras
+        if self.alone.any():
+            extras = {key: value[~self.alone] for key, value in extras.items()}
+        row = self.curriculum_event.on_step(extras, skill_progress, alone_progress)
         if row is None:
             return {}
         self._apply_curriculum()
         log = {
             "Curriculum/applied_force_n": float(row["applied_force_n"]),
             "Curriculum/skill_progress": float(row["skill_progress"]),
+            **({"Curriculum/skill_progress_alone": float(row["alone_progress"])}
+               if row["alone_progress"] is not None else {}),  # fmt: skip
             "Curriculum/assist_enabled": float(row["assist_enabled"]),
             "Curriculum/less_assist_reward": float(row["less_assist_reward"]),
         }

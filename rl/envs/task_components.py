@@ -3,11 +3,13 @@ measure (protocols in :mod:`rl.envs.components`), with the phase and command the
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Any
 
 import torch
 
 if TYPE_CHECKING:
+    from rl.envs.components import SkillMeasure
     from rl.envs.state import EnvState
     from rl.envs.task_schema import TaskConfig
 
@@ -24,8 +26,40 @@ class TaskComponents:
         self.command = torch.zeros(num_envs, task.commands.dim)
         self.phase_machine = task.phases.build(num_envs, generator)
         self.skill = task.skill.build(max_episode_length)
+        self.alone_skill: SkillMeasure | None = None  # the alone envs' measure (:meth:`track_alone`)
+        self._skill_cfg, self._max_episode_length = task.skill, max_episode_length
         self.phase = torch.zeros(num_envs, dtype=torch.long)
         self.all = (self.command_gen, self.phase_machine, self.skill)
+
+    def track_alone(self, window: int | None) -> None:
+        """Measure the alone envs' skill in a window of its own of ``window`` finished episodes
+        (the task's skill config with that window); ``None``: no alone envs."""
+        if window is None:
+            self.alone_skill = None
+            return
+        cfg = self._skill_cfg
+        if "window" in {f.name for f in dataclasses.fields(cfg)}:
+            cfg = dataclasses.replace(cfg, window=window)
+        self.alone_skill = cfg.build(self._max_episode_length)
+
+    def on_episodes_end(
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
+        alone: torch.Tensor,
+    ) -> None:
+        """Hand finished episodes (see :meth:`SkillMeasure.on_episodes_end`) to the skill
+        measure, those of alone envs (``alone`` (N,) bool) to the alone envs' measure."""
+        lone = alone[env_ids]
+        if self.alone_skill is None or not lone.any():
+            self.skill.on_episodes_end(env_ids, time_outs, lived_steps, state)
+            return
+        helped = ~lone
+        if helped.any():
+            self.skill.on_episodes_end(env_ids[helped], time_outs[helped], lived_steps[helped], state)
+        self.alone_skill.on_episodes_end(env_ids[lone], time_outs[lone], lived_steps[lone], state)
 
     def update(self, state: EnvState, dt_s: float) -> None:
         """Phase and command of the state after a step of ``dt_s`` [s] (0 after a reset)."""
@@ -49,6 +83,7 @@ class TaskComponents:
             "command_gen": self.command_gen.state_dict(),
             "phase_machine": self.phase_machine.state_dict(),
             "skill": self.skill.state_dict(),
+            **({"alone_skill": self.alone_skill.state_dict()} if self.alone_skill else {}),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -57,3 +92,5 @@ class TaskComponents:
         self.command_gen.load_state_dict(state["command_gen"])
         self.phase_machine.load_state_dict(state["phase_machine"])
         self.skill.load_state_dict(state["skill"])
+        if self.alone_skill is not None and "alone_skill" in state:
+            self.alone_skill.load_state_dict(state["alone_skill"])

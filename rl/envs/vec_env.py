@@ -148,6 +148,8 @@ class G1VecEnv(VecEnv):
         """Run Algorithm 1 inside the env (every ``event.steps_per_iteration`` steps) and apply its
         current state now; ``None`` detaches it (the env keeps its last bounds)."""
         self.assist.attach_curriculum(event, self.task.name)
+        share = event.curriculum.cfg.alone_share if event is not None else 0.0
+        self.task_components.track_alone(event.curriculum.cfg.alone_window if share > 0 else None)
 
     # ---------------------------------------------------------------- VecEnv API
     def get_observations(self) -> TensorDict:
@@ -189,7 +191,9 @@ class G1VecEnv(VecEnv):
         done_ids = dones.nonzero().flatten()
         if done_ids.numel():
             lived = self.resets.lived_steps[done_ids]
-            self.skill.on_episodes_end(done_ids, time_outs[done_ids], lived, state)
+            self.task_components.on_episodes_end(
+                done_ids, time_outs[done_ids], lived, state, self.assist.alone
+            )
         self.motion.end_step()
         if done_ids.numel():
             self._reset(done_ids)
@@ -204,10 +208,16 @@ class G1VecEnv(VecEnv):
         log.update(self.assist.log())
         log["Train/mean_step_reward"] = float(reward.mean())
         progress = log["Episode/skill_progress"] = self.skill.progress()
+        alone = self.task_components.alone_skill
+        alone_progress = None if alone is None else alone.progress()
+        if alone_progress is not None:
+            log["Episode/skill_progress_alone"] = alone_progress
         log.update(self.task_components.log())
-        log.update(self.assist.curriculum_step(progress))
+        log.update(self.assist.curriculum_step(progress, alone_progress))
         extras = {"time_outs": time_outs, "log": log, "assist": self.assist.step_extras,
                   "skill_progress": progress}  # fmt: skip
+        if alone_progress is not None:
+            extras["skill_progress_alone"] = alone_progress
         return obs, reward, dones, extras
 
     def close(self) -> None:
