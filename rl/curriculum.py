@@ -69,7 +69,7 @@ def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:
     return tuple(tuple(float(v) for v in row) for row in PAPER_ETA0[paper_task]["all"])
 
 
-FORCE_MEASURES: tuple[str, ...] = ("mean", "quantile")
+FORCE_MEASURES: tuple[str, ...] = ("none", "mean", "quantile")
 SKILL_MEASURES: tuple[str, ...] = ("alone", "helped")
 """Whose skill triggers the skill-learned decay (:class:`CurriculumConfig`.skill_measure)."""
 """What ``|F_k|`` of the force rule is (:class:`CurriculumConfig`.force_measure)."""
@@ -79,14 +79,15 @@ RATIO_BINS = 200
 
 
 PAPER_RULES: dict[str, Any] = {
+    "force_measure": "mean",
     "skill_measure": "helped",
     "skill_learned_progress": 1.0,
     "alone_share": 0.0,
 }
 """The :class:`CurriculumConfig` fields that give the paper's Algorithm 1 exactly (the other
 defaults are the paper's): ``CurriculumConfig(**PAPER_RULES)``, on the command line
-``--curriculum-skill-measure helped --curriculum-skill-learned-progress 1.0
---curriculum-alone-share 0``."""
+``--curriculum-force-measure mean --curriculum-skill-measure helped
+--curriculum-skill-learned-progress 1.0 --curriculum-alone-share 0``."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ class CurriculumConfig:
     skill_measure: str = "alone"  # whose skill triggers the skill-learned decay: "alone" (the alone envs) or "helped" (the paper) [-]
     alone_share: float = 0.25  # share of the envs that never get help (fixed env ids); 0: the paper [-]
     alone_window: int = 64  # finished episodes in the alone envs' skill window [-]
-    force_measure: str = "mean"  # |F_k| of the force rule: "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
+    force_measure: str = "none"  # |F_k| of the force rule: "none" (no force rule: the bound moves by the skill-learned decay only), "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
     force_quantile: float = (
         0.9  # quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]
     )
@@ -277,8 +278,9 @@ class AssistCurriculum:
             progress = skill_progress
         skill_learned = progress >= self.cfg.skill_learned_progress
         if self.assist_enabled:
+            ruled = visited if self.cfg.force_measure != "none" else torch.zeros_like(visited)
             self.eta = update_bound(
-                self.eta, applied_norm, visited, skill_learned, self.cfg.epsilon, self.cfg.delta
+                self.eta, applied_norm, ruled, skill_learned, self.cfg.epsilon, self.cfg.delta
             )
             if skill_progress >= self.cfg.less_assist_progress:
                 self.less_assist_reward = True
@@ -499,7 +501,7 @@ class CurriculumEvent:
         cfg = self.curriculum.cfg
         ratio_q = histogram_quantile(hist, cfg.force_quantile).float()
         eta_norm = torch.linalg.vector_norm(self.curriculum.eta, dim=-1)
-        applied_norm = mean_norm if cfg.force_measure == "mean" else ratio_q * eta_norm
+        applied_norm = ratio_q * eta_norm if cfg.force_measure == "quantile" else mean_norm
         skill_progress = skill_sum / (processes * self.steps_per_iteration)
         alone_progress = (
             alone_sum / (processes * self.steps_per_iteration) if alone_progress is not None else None

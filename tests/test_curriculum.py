@@ -297,7 +297,7 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
     eta0 = ETA0[:1]
     paper = CurriculumEvent(AssistCurriculum(eta0, PAPER), steps_per_iteration=1)
     quant = CurriculumEvent(
-        AssistCurriculum(eta0, CurriculumConfig(force_measure="quantile", **PAPER_RULES)), steps_per_iteration=1
+        AssistCurriculum(eta0, CurriculumConfig(**{**PAPER_RULES, "force_measure": "quantile"})), steps_per_iteration=1
     )
     for _ in range(5):
         p_row = paper.on_step(_as_needed_extras(100, 20, paper.curriculum.eta[0]), 0.0)
@@ -345,3 +345,13 @@ def test_event_averages_the_alone_progress_over_the_rollout() -> None:
     assert event.on_step(zero, skill_progress=0.0, alone_progress=0.6) is None
     row = event.on_step(zero, skill_progress=0.0, alone_progress=1.0)
     assert row["alone_progress"] == pytest.approx(0.8) and row["skill_learned"]
+
+
+def test_no_force_rule_holds_the_bound_until_the_skill_is_learned() -> None:
+    cur = AssistCurriculum(ETA0)  # the default: force rule off
+    assert cur.cfg.force_measure == "none"
+    for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
+        cur.update(it, 0.1 * NORM0, BOTH, skill_progress=0.0, alone_progress=0.0)
+    torch.testing.assert_close(cur.eta, ETA0)
+    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.0, alone_progress=0.9)
+    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
