@@ -56,6 +56,7 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
         "run": run_dir.name,
         "task": cfg.task,
         "mode": cfg.mode,
+        "variant": run_variant(cfg),
         "seed": cfg.seed,
         "num_envs": cfg.env.num_envs,
         "target": task.target.describe(),
@@ -72,6 +73,21 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
     }
 
 
+def run_variant(cfg: Any) -> str:
+    """The name a study groups a run under: its mode, ``+warm`` when its force agent was
+    warm-started, ``+paper`` when its curriculum follows the paper's rules."""
+    from rl.curriculum import PAPER_RULES
+
+    name = cfg.mode
+    if cfg.warmstart:
+        name += "+warm"
+    if cfg.mode != "baseline" and all(
+        getattr(cfg.curriculum, key) == value for key, value in PAPER_RULES.items()
+    ):
+        name += "+paper"
+    return name
+
+
 def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, Any]:
     """Per run and per (task, mode): env steps to the assistance-free target (mean, spread over
     seeds, runs that never reached it counted as not reached); ``study.json`` and ``study.png``
@@ -81,7 +97,7 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
     runs = [run_summary(d) for d in run_dirs]
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in runs:
-        groups[f"{r['task']} {r['mode']}"].append(r)
+        groups[f"{r['task']} {r['variant']}"].append(r)
     table = []
     for name, members in groups.items():
         reached = [m["reached_at_env_steps"] for m in members if m["reached_at_env_steps"]]
@@ -98,6 +114,13 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
                 "last_metric": [m["last_metric"] for m in members],
             }
         )
+    baselines = {row["group"].split()[0]: row for row in table if row["group"].endswith(" baseline")}
+    for row in table:
+        base = baselines.get(row["group"].split()[0])
+        mean, ref = row["env_steps_to_target_mean"], base and base["env_steps_to_target_mean"]
+        # Ratio of the mean env steps to the target over the seeds that reached it (the
+        # "reached" column says how many); None when either side never reached it.
+        row["ratio_to_baseline"] = mean / ref if mean and ref else None
     result = {"runs": runs, "groups": table}
     atomic_write_json(out / "study.json", result)
     _plot([Path(d) for d in run_dirs], runs, out / "study.png")
@@ -135,3 +158,60 @@ def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:
     fig.tight_layout()
     atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
+
+
+def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = "") -> Path:
+    """The A2CF lifecycle of runs against env steps, one figure: the bound ``|eta|`` (the largest
+    phase's), the applied force, the helped and the alone envs' skill progress during training,
+    and the motion policy's evaluations alone (survival; the task metric). Baseline runs appear
+    in the last panels only."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(19, 3.8))
+    metric_name = None
+    for run_dir in map(Path, run_dirs):
+        summary = run_summary(run_dir)
+        label = f"{summary['variant']} s{summary['seed']}"
+        metric_name = metric_name or summary["metric"]
+        metrics = json.loads((run_dir / METRICS_FILE).read_text()) if (
+            run_dir / METRICS_FILE).is_file() else {"iterations": []}  # fmt: skip
+        rows = metrics["iterations"]
+        steps = np.cumsum([r["env_steps"] for r in rows]) / 1e6
+        color = None
+        if summary["mode"] != "baseline" and rows:
+            eta = [max(r["eta_norm"]) if r["eta_norm"] else 0.0 for r in rows]
+            (line,) = axes[0].plot(steps, eta, label=label)
+            color = line.get_color()
+            axes[1].plot(steps, [r["applied_force_n"] for r in rows], color=color, label=label)
+            axes[2].plot(steps, [r["skill_progress"] or 0.0 for r in rows], color=color,
+                         label=f"{label} helped")  # fmt: skip
+            alone = [r.get("skill_progress_alone") for r in rows]
+            if any(a is not None for a in alone):
+                axes[2].plot(steps, [a or 0.0 for a in alone], color=color, ls=":",
+                             label=f"{label} alone envs")  # fmt: skip
+        evals = read_evals(run_dir)
+        x, y = curve_arrays(evals, "survival_fraction")
+        (line,) = axes[3].plot(x / 1e6, y, marker=".", color=color, label=f"{label} survival")
+        if summary["metric"]:
+            x, y = curve_arrays(evals, summary["metric"])
+            axes[3].plot(x / 1e6, y, ls="--", color=line.get_color(),
+                         label=f"{label} {summary['metric']}")  # fmt: skip
+    axes[0].set_ylabel("|eta| of the largest phase [N, Nm]")
+    axes[1].set_ylabel("applied force, mean |F| [N]")
+    axes[2].set_ylabel("skill progress in training (1 = target)")
+    axes[3].set_ylabel("policy alone: survival" + (f", {metric_name}" if metric_name else ""))
+    axes[3].set_ylim(-0.02, 1.02)
+    for ax in axes:
+        ax.set_xlabel("env steps [M]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    atomic_savefig(fig, path, dpi=90)
+    plt.close(fig)
+    return path

@@ -4,6 +4,7 @@ divergence guard, randomisation, tasks plugging in by config, exact state round 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import mujoco
 import numpy as np
@@ -419,3 +420,39 @@ def test_link_ground_contacts_and_foot_timers_from_the_physics():
     torch.testing.assert_close(
         env.env_state.foot_last_air_time_s[0][landed], air[-2][landed] + 0.02
     )
+
+
+def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
+    """The curriculum's alone share: fixed envs whose wrench is zero for whole episodes, their
+    episodes measured apart, and left out of the force rule's statistics."""
+    from rl.curriculum import AssistCurriculum, CurriculumConfig, CurriculumEvent
+
+    env = quiet_env(num_envs=8, task=variant(episode_length_s=0.06))  # 3 policy steps
+    cfg = CurriculumConfig(alone_share=0.25, alone_window=4)
+    eta0 = torch.full((env.num_phases, 6), 20.0)
+    env.attach_curriculum(CurriculumEvent(AssistCurriculum(eta0, cfg), steps_per_iteration=3))
+    env.set_random_mask_prob(0.0)
+    assert env.assist.alone.tolist() == [True, True] + [False] * 6
+    actions = zero_actions(env)
+    actions[:, 29:] = 1.0  # the head asks for help everywhere
+    env.episode_length_buf = torch.zeros_like(env.episode_length_buf)
+    env.episode_length_buf[6:] = env.max_episode_length - 1  # cut short: counted by nobody
+    for _ in range(3):
+        _, _, dones, extras = env.step(actions)
+        wrench = extras["assist"]["applied_wrench"]
+        assert (wrench[:2] == 0).all() and (wrench[2:].abs() > 0).all()
+    assert dones[:6].all()
+    # Two alone episodes and four helped ones survived to the time limit.
+    assert env.task_components.alone_skill.window.count == 2
+    assert env.skill.window.count == 4
+    assert extras["skill_progress_alone"] == pytest.approx(1.0 / env.task.skill.target_survival)
+    row = env.curriculum_event.history[-1]
+    assert row["alone_progress"] is not None
+    # The force statistics saw the helped rows only: the mean applied norm is the full help.
+    helped_norm = float(torch.linalg.vector_norm(eta0[0] * math.tanh(1.0)))
+    assert row["mean_applied_norm"][0] == pytest.approx(helped_norm, rel=1e-5)
+    state = env.state_dict()
+    other = quiet_env(num_envs=8, task=variant(episode_length_s=0.06))
+    other.attach_curriculum(CurriculumEvent(AssistCurriculum(eta0, cfg), steps_per_iteration=3))
+    other.load_state_dict(state)
+    assert other.task_components.alone_skill.window.count == 2
