@@ -97,10 +97,14 @@ class CurriculumConfig:
     epsilon: float = 0.5  # tolerance band on |F|/|eta| before the bound moves [-]
     delta: float = 0.2  # relative bound change per update [-]
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
-    less_assist_progress: float = 0.8  # helped skill progress that switches on the less-assist reward [-]
+    less_assist_progress: float = (
+        0.8  # helped skill progress that switches on the less-assist reward [-]
+    )
     skill_learned_progress: float = 0.8  # progress of skill_measure at which the skill counts as learned (the paper: 1.0 of the helped skill) [-]
     skill_measure: str = "alone"  # whose skill triggers the skill-learned decay: "alone" (the alone envs) or "helped" (the paper) [-]
-    alone_share: float = 0.25  # share of the envs that never get help (fixed env ids); 0: the paper [-]
+    alone_share: float = (
+        0.25  # share of the envs that never get help (fixed env ids); 0: the paper [-]
+    )
     alone_window: int = 64  # finished episodes in the alone envs' skill window [-]
     force_measure: str = "none"  # |F_k| of the force rule: "none" (no force rule: the bound moves by the skill-learned decay only), "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
     force_quantile: float = (
@@ -481,8 +485,13 @@ class CurriculumEvent:
                     self.stats.ratio_hist.reshape(-1),
                     self.stats.axis_abs_sum.reshape(-1),
                     torch.tensor(
-                        [self.stats.force_sum_n, float(self.stats.steps), self.skill_sum,
-                         self.alone_sum, 1.0],  # fmt: skip
+                        [
+                            self.stats.force_sum_n,
+                            float(self.stats.steps),
+                            self.skill_sum,
+                            self.alone_sum,
+                            1.0,
+                        ],  # fmt: skip
                         dtype=torch.float64,
                     ),
                 ]
@@ -504,7 +513,9 @@ class CurriculumEvent:
         applied_norm = ratio_q * eta_norm if cfg.force_measure == "quantile" else mean_norm
         skill_progress = skill_sum / (processes * self.steps_per_iteration)
         alone_progress = (
-            alone_sum / (processes * self.steps_per_iteration) if alone_progress is not None else None
+            alone_sum / (processes * self.steps_per_iteration)
+            if alone_progress is not None
+            else None
         )
         update = self.curriculum.update(
             self.iteration, applied_norm, visited, skill_progress, alone_progress

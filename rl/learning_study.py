@@ -114,7 +114,9 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
                 "last_metric": [m["last_metric"] for m in members],
             }
         )
-    baselines = {row["group"].split()[0]: row for row in table if row["group"].endswith(" baseline")}
+    baselines = {
+        row["group"].split()[0]: row for row in table if row["group"].endswith(" baseline")
+    }
     for row in table:
         base = baselines.get(row["group"].split()[0])
         mean, ref = row["env_steps_to_target_mean"], base and base["env_steps_to_target_mean"]

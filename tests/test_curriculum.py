@@ -135,7 +135,9 @@ def test_bad_inputs_are_reported() -> None:
     with pytest.raises(ValueError, match="epsilon"):
         CurriculumConfig(epsilon=1.5)
     with pytest.raises(ValueError, match="2 phases"):
-        AssistCurriculum(ETA0, PAPER).update(0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0)
+        AssistCurriculum(ETA0, PAPER).update(
+            0, torch.zeros(3), torch.ones(3, dtype=torch.bool), 0.0
+        )
     with pytest.raises(ValueError, match="no initial-bound row"):
         paper_bound_rows("juggle")
 
@@ -297,7 +299,8 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
     eta0 = ETA0[:1]
     paper = CurriculumEvent(AssistCurriculum(eta0, PAPER), steps_per_iteration=1)
     quant = CurriculumEvent(
-        AssistCurriculum(eta0, CurriculumConfig(**{**PAPER_RULES, "force_measure": "quantile"})), steps_per_iteration=1
+        AssistCurriculum(eta0, CurriculumConfig(**{**PAPER_RULES, "force_measure": "quantile"})),
+        steps_per_iteration=1,
     )
     for _ in range(5):
         p_row = paper.on_step(_as_needed_extras(100, 20, paper.curriculum.eta[0]), 0.0)

@@ -151,8 +151,11 @@ class AssistAction:
         log = {
             "Curriculum/applied_force_n": float(row["applied_force_n"]),
             "Curriculum/skill_progress": float(row["skill_progress"]),
-            **({"Curriculum/skill_progress_alone": float(row["alone_progress"])}
-               if row["alone_progress"] is not None else {}),  # fmt: skip
+            **(
+                {"Curriculum/skill_progress_alone": float(row["alone_progress"])}
+                if row["alone_progress"] is not None
+                else {}
+            ),  # fmt: skip
             "Curriculum/assist_enabled": float(row["assist_enabled"]),
             "Curriculum/less_assist_reward": float(row["less_assist_reward"]),
         }

@@ -26,7 +26,9 @@ class TaskComponents:
         self.command = torch.zeros(num_envs, task.commands.dim)
         self.phase_machine = task.phases.build(num_envs, generator)
         self.skill = task.skill.build(max_episode_length)
-        self.alone_skill: SkillMeasure | None = None  # the alone envs' measure (:meth:`track_alone`)
+        self.alone_skill: SkillMeasure | None = (
+            None  # the alone envs' measure (:meth:`track_alone`)
+        )
         self._skill_cfg, self._max_episode_length = task.skill, max_episode_length
         self.phase = torch.zeros(num_envs, dtype=torch.long)
         self.all = (self.command_gen, self.phase_machine, self.skill)
@@ -58,7 +60,9 @@ class TaskComponents:
             return
         helped = ~lone
         if helped.any():
-            self.skill.on_episodes_end(env_ids[helped], time_outs[helped], lived_steps[helped], state)
+            self.skill.on_episodes_end(
+                env_ids[helped], time_outs[helped], lived_steps[helped], state
+            )
         self.alone_skill.on_episodes_end(env_ids[lone], time_outs[lone], lived_steps[lone], state)
 
     def update(self, state: EnvState, dt_s: float) -> None:
