@@ -1,201 +1,341 @@
-"""``a2cf-mb demo``: the whole method end to end, small enough for a 2-core laptop.
+"""``a2cf-mb demo``: one task end to end, the G1 dance, in about 10 minutes on 2 CPU cores.
 
-1. The oracle: ``solve-walk`` (placo walk -> per-frame wrench QP over an alpha sweep -> eta0 per
-   phase -> artifact with plots and video).
-2. Training, same seed, envs and budget: the baseline (no assist agent) and A2CF with the force
-   agent warm-started from a coach (``--warmstart``: the task's oracle artifact when its task is
-   the training task, else the built-in as-needed posture coach, with the paper's bounds).
-3. Evaluation of both motion policies alone (assistance off), in the training physics and in the
-   second simulator (``eval --sim2sim``), with a video each when rendering works.
-4. ``report.md`` with the figures, the numbers and what the small budget can and cannot show.
+1. The oracle: ``a2cf-mb solve-dance`` (the built-in choreography -> per-frame wrench QP over an
+   alpha sweep -> eta0 -> artifact with plots) into ``<out>/oracle/``.
+2. Two training runs side by side, one per core, same seed, envs and budget: ``baseline`` (no
+   assist agent) and ``a2cf_warm`` (A2CF, its force agent warm-started from the oracle's coach and
+   bounds, plus :data:`A2CF_VARIANT_FLAGS`). Both evaluate their policy alone (assistance off)
+   ``DemoConfig.evals`` times during training.
+3. As each run ends, its motion policy is evaluated alone in the training physics and in the
+   second simulator (``a2cf-mb eval --sim2sim``), with a video when rendering works.
+4. ``summary.json`` (the numbers) and ``report.md`` (the figures, the numbers and what they show).
+
+Every stage is a child process (``python -m a2cf_mb ...``, one thread each) logging to
+``<out>/logs/``; the terminal shows each training run's iteration, env steps, episode length,
+assist bound and ETA while it runs (:mod:`a2cf_mb.progress`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import os
+import shlex
 import shutil
+import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO
 
-from optimal_control.files import atomic_savefig, atomic_write_text, check_writable_dir
-from rl.run_folder import METRICS_FILE, WARMSTART_FILE
+from a2cf_mb.demo_report import (
+    A2CF,
+    BASELINE,
+    DEMO_ENTRIES,
+    LOGS_DIR,
+    ORACLE_DIR,
+    REPORT_FILE,
+    RUNS_DIR,
+    SUMMARY_FILE,
+    VIDEOS_DIR,
+    build_summary,
+    oracle_entry,
+    plot_curves,
+    read_run,
+    relative,
+    render_report,
+    verdict,
+)
+from a2cf_mb.progress import (
+    Stage,
+    StatusBoard,
+    TrainFollower,
+    clock_str,
+    duration_str,
+    format_alone,
+    format_train_status,
+    run_lanes,
+)
+from optimal_control.files import (
+    OutputExistsError,
+    atomic_write_json,
+    atomic_write_text,
+    check_writable_dir,
+)
+from rl.run_folder import EVAL_FILE, METRICS_FILE, RunFolderLock, StaleLockWarning
+
+TASK = "dance"
+"""The demo's task: of the registered skills the one a CPU learns fastest (the baseline's policy
+alone reaches its target within a few M env steps, docs/results/skills_learn)."""
+A2CF_VARIANT_FLAGS: tuple[str, ...] = ("--curriculum-force-measure", "quantile")
+"""``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <oracle>``; the report
+and summary.json print them."""
 
 
 @dataclass(frozen=True)
 class DemoConfig:
-    """Budget and outputs of the demo (bigger budgets are flags)."""
+    """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    task: str = "stand"  # training task (see list-tasks)
-    num_envs: int = 64  # parallel envs of each training run [-]
-    iterations: int = 200  # PPO iterations of each run (24 steps per env each) [-]
+    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 12 min for the whole demo on 2 cores [-]
+    num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
-    walk_duration_s: float = 4.0  # length of the oracle's walk reference [s]
-    eval_envs: int = 16  # envs of each evaluation [-]
-    video: bool = True  # eval videos (needs MUJOCO_GL=egl; skipped with a note otherwise)
-    out: str = "demo"  # output folder (report.md, oracle/, runs/) [-]
-    overwrite: bool = False  # replace an existing output folder
+    evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]
+    eval_envs: int = 32  # envs of the final evaluations, one episode each [-]
+    video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl; skipped with a note otherwise)
+    out: str = "demo"  # output folder: report.md, summary.json, oracle/, runs/, videos/, logs/ [-]
+    overwrite: bool = False  # replace the output folder of an earlier demo
 
     def __post_init__(self) -> None:
-        """Check sizes before any work (the walk's bound is the oracle's own)."""
-        from optimal_control.validation import require_within
-        from optimal_control.walk import MAX_WALK_DURATION_S
+        """Check sizes before any work."""
+        for name in ("iterations", "num_envs", "evals", "eval_envs"):
+            if getattr(self, name) < 1:
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(f"demo {flag} must be >= 1, got {getattr(self, name)}")
 
-        if min(self.num_envs, self.iterations, self.eval_envs) < 1:
-            raise ValueError("demo num_envs, iterations and eval_envs must be >= 1")
-        require_within(
-            self, "walk_duration_s", 0.0, MAX_WALK_DURATION_S, "s", low_open=True,
-            why="the oracle's walk repeats one step cycle (see a2cf-mb solve-walk --duration)",
-        )  # fmt: skip
-
-
-def _eta_table(eta0: list[list[float]], phases: list[str]) -> str:
-    lines = ["| phase | fx | fy | fz [N] | mx | my | mz [N m] |", "|---|---|---|---|---|---|---|"]
-    for name, row in zip(phases, eta0, strict=True):
-        lines.append(f"| {name} | " + " | ".join(f"{v:.1f}" for v in row) + " |")
-    return "\n".join(lines)
+    @property
+    def eval_interval(self) -> int:
+        """Iterations between two evaluations of the policy alone during training."""
+        return max(math.ceil(self.iterations / self.evals), 1)
 
 
-def _curves(runs: dict[str, Path], out: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
-    for name, run in runs.items():
-        rows = json.loads((run / METRICS_FILE).read_text())["iterations"]
-        steps, total = [], 0
-        for r in rows:
-            total += r["env_steps"]
-            steps.append(total)
-        axes[0].plot(steps, [r["mean_episode_length"] or 0.0 for r in rows], label=name)
-        axes[1].plot(steps, [r["mean_step_reward"] for r in rows], label=name)
-        axes[2].plot(steps, [r["applied_force_n"] for r in rows], label=name)
-    titles = ("mean episode length [steps]", "mean step reward", "applied assist force [N]")
-    for ax, title in zip(axes, titles, strict=True):
-        ax.set_title(title)
-        ax.set_xlabel("env steps")
-        ax.legend()
-    fig.tight_layout()
-    path = out / "learning_curves.png"
-    atomic_savefig(fig, path, dpi=100)
-    plt.close(fig)
-    return path
+# ------------------------------------------------------------------------------------ commands
+def train_arguments(cfg: DemoConfig, name: str, out: Path) -> list[str]:
+    """``a2cf-mb`` arguments of training run ``name`` (:data:`BASELINE` or :data:`A2CF`)."""
+    common = [
+        "train", "--task", TASK, "--iterations", str(cfg.iterations),
+        "--num-envs", str(cfg.num_envs), "--seed", str(cfg.seed),
+        "--torch-threads", "1", "--env-num-threads", "1",
+        "--eval-interval", str(cfg.eval_interval), "--save-interval", str(cfg.iterations),
+        "--out", str(out / RUNS_DIR), "--run-name", name,
+    ]  # fmt: skip
+    if name == BASELINE:
+        return [*common, "--mode", "baseline"]
+    return [*common, "--mode", "a2cf", "--warmstart", str(out / ORACLE_DIR), *A2CF_VARIANT_FLAGS]
 
 
-def run_demo(cfg: DemoConfig = DemoConfig()) -> Path:
-    """Run the demo; returns the path of ``report.md``."""
-    from optimal_control.oracle import OracleConfig, solve_walk
-    from optimal_control.walk import WalkConfig
-    from rl.envs.config import EnvConfig
-    from rl.evaluate import EvalConfig, evaluate
+def eval_arguments(cfg: DemoConfig, name: str, out: Path) -> list[str]:
+    """``a2cf-mb`` arguments of the final evaluation of run ``name``."""
+    video = ["--video", str(out / VIDEOS_DIR / f"{name}.mp4")] if cfg.video else []
+    run_dir = str(out / RUNS_DIR / name)
+    return ["eval", run_dir, "--num-envs", str(cfg.eval_envs), "--sim2sim", *video]
+
+
+def oracle_arguments(out: Path) -> list[str]:
+    """``a2cf-mb`` arguments of the oracle (no video: rendering the 17 s reference costs minutes
+    on a CPU; ``a2cf-mb solve-dance`` renders it)."""
+    return ["solve-dance", "--out", str(out / ORACLE_DIR), "--no-progress", "--no-video"]
+
+
+def check_train_arguments(arguments: list[str]) -> None:
+    """Parse ``a2cf-mb train`` arguments and build their config as the child will, so a bad flag
+    (e.g. in :data:`A2CF_VARIANT_FLAGS`) fails in seconds, before any work."""
+    from a2cf_mb.cli import build_parser
+    from a2cf_mb.commands.train import task_overrides
+    from a2cf_mb.config_cli import config_from_args
     from rl.registry import get_task
-    from rl.runner import train
     from rl.train_config import TrainConfig
 
-    out = Path(cfg.out)
-    if out.exists() and any(out.iterdir()):
-        if not cfg.overwrite:
-            raise ValueError(f"demo output folder {out} exists: pass --overwrite or another --out")
-        shutil.rmtree(out)
-    out.mkdir(parents=True, exist_ok=True)
-    check_writable_dir(out, "demo --out")
-    task = get_task(cfg.task)
-    times: dict[str, float] = {}
+    args = build_parser("train").parse_args(arguments)
+    overrides = task_overrides(args)
+    config_from_args(TrainConfig, args, task_overrides=overrides)
+    get_task(args.task).with_overrides(overrides)
 
-    start = time.time()
-    oracle_dir = out / "oracle"
-    artifact, _ = solve_walk(
-        WalkConfig(duration=cfg.walk_duration_s),
-        OracleConfig(out=str(oracle_dir), progress=False, video=cfg.video),
-    )
-    times["oracle"] = time.time() - start
-    warmstart = str(oracle_dir) if artifact.task == task.name else "posture"
 
-    common = TrainConfig(
-        task=cfg.task, iterations=cfg.iterations, out=str(out / "runs"),
-        env=EnvConfig(num_envs=cfg.num_envs, seed=cfg.seed), save_interval=cfg.iterations,
-    )  # fmt: skip
-    specs = {
-        "baseline": dataclasses.replace(common, mode="baseline", run_name="baseline"),
-        "a2cf_warmstart": dataclasses.replace(
-            common, mode="a2cf", warmstart=warmstart, run_name="a2cf_warmstart"
-        ),
-    }
-    runs: dict[str, Path] = {}
-    evals: dict[str, dict[str, Any]] = {}
-    for name, train_cfg in specs.items():
-        start = time.time()
-        runs[name] = train(train_cfg, verbose=False).run_dir
-        times[f"train {name}"] = time.time() - start
-        start = time.time()
-        video = str(out / f"{name}.mp4") if cfg.video else ""
-        evals[name] = evaluate(
-            runs[name], EvalConfig(num_envs=cfg.eval_envs, video=video, sim2sim=True)
+def child_command(arguments: list[str]) -> list[str]:
+    """The command line of a child: this Python, ``-m a2cf_mb`` and ``arguments``."""
+    return [sys.executable, "-m", "a2cf_mb", *arguments]
+
+
+def child_env() -> dict[str, str]:
+    """The children's environment: one thread each (two runs share two cores), unbuffered
+    output (their logs are read live), EGL for the videos unless MUJOCO_GL is set."""
+    env = dict(os.environ)
+    env.update(OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    env.setdefault("MUJOCO_GL", "egl")
+    return env
+
+
+# ------------------------------------------------------------------------------ output folder
+def check_output(out: Path, overwrite: bool) -> None:
+    """Refuse, before any work, an output folder the demo must not write: a file, an earlier
+    output without ``overwrite``, a folder holding files the demo did not write, a run in it that
+    a live process is training. Raises ValueError (OutputExistsError) or RunFolderBusyError."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"demo --out '{out}' is a file, not a folder; choose another --out")
+    entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+    if entries and not overwrite:
+        raise OutputExistsError(
+            f"demo --out '{out}' exists and is not empty; pass --overwrite to replace an earlier "
+            "demo's output, or choose another --out"
         )
-        times[f"eval {name}"] = time.time() - start
-    curves = _curves(runs, out)
-    report = _report(cfg, artifact, oracle_dir, warmstart, runs, evals, curves, times)
-    path = out / "report.md"
-    atomic_write_text(path, report)
-    return path
+    foreign = [e for e in entries if e not in DEMO_ENTRIES]
+    if foreign:
+        raise ValueError(
+            f"demo --out '{out}' holds files a demo does not write ({', '.join(foreign[:5])}); "
+            "--overwrite deletes only an earlier demo's output: choose another --out"
+        )
+    runs = out / RUNS_DIR
+    run_dirs = sorted(p for p in runs.iterdir() if p.is_dir()) if runs.is_dir() else []
+    for run_dir in run_dirs:  # a live process training there: RunFolderBusyError naming it
+        with warnings.catch_warnings():  # a stale lock (a stopped demo): deleted with the folder
+            warnings.simplefilter("ignore", StaleLockWarning)
+            with RunFolderLock(run_dir, create=False):
+                pass
 
 
-def _report(cfg, artifact, oracle_dir, warmstart, runs, evals, curves, times) -> str:
-    warm = json.loads((runs["a2cf_warmstart"] / WARMSTART_FILE).read_text())
-    fit = warm["held_out_fit"]
-    rows = [
-        f"| {name} | {e['survival_fraction']:.2f} | {e['mean_return']:.2f} | "
-        f"{e['sim2sim']['survival_fraction']:.2f} | {e['sim2sim']['mean_return']:.2f} |"
-        for name, e in evals.items()
+# ------------------------------------------------------------------------------------ the demo
+def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> Path:
+    """Run the demo (see the module docstring); returns the path of ``report.md``.
+
+    ``stream``: where the stage lines and the live status go (default stdout; redrawn in place
+    when it is a terminal, a status block every 30 s otherwise).
+
+    Raises:
+        ValueError: a bad config, output folder or train flag (found before anything is written).
+        a2cf_mb.progress.StageFailedError: a stage failed; its log's path and tail in the message.
+    """
+    from rl.registry import get_task
+
+    out = Path(cfg.out).expanduser().absolute()
+    check_output(out, cfg.overwrite)
+    commands = {name: train_arguments(cfg, name, out) for name in (BASELINE, A2CF)}
+    for arguments in commands.values():
+        check_train_arguments(arguments)
+    check_writable_dir(out, "demo --out")
+    for entry in out.iterdir():  # an earlier demo's output (check_output made sure)
+        if entry.is_dir():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
+    task = get_task(TASK)
+    board = StatusBoard(stream if stream is not None else sys.stdout)
+    env = child_env()
+    start = time.monotonic()
+    board.message(
+        f"a2cf-mb demo: {TASK}, baseline vs A2CF warm-started from the oracle; {cfg.num_envs} envs "
+        f"x {cfg.iterations} iterations per run, seed {cfg.seed}, one core each -> {out}"
+    )
+    times = run_lanes([[_oracle_stage(out)]], board, env)
+    lanes = [
+        _run_lane(cfg, name, arguments, out, task.target.metric)
+        for name, arguments in commands.items()
     ]
-    env_steps = cfg.iterations * cfg.num_envs * 24
-    plots = sorted(p.name for p in (oracle_dir / "plots").glob("*.png"))
-    videos = [f"- [{n}]({n}.mp4)" for n in evals if (Path(cfg.out) / f"{n}.mp4").is_file()]
-    return "\n".join(
-        [
-            f"# a2cf-mb demo: task `{cfg.task}`",
-            "",
-            "## 1. The oracle (walk reference, wrench QP, eta0)",
-            f"Artifact `oracle/` ({time_str(times['oracle'])}): novice model "
-            f"`{artifact.novice_model}`; eta0 per phase from the alpha = {artifact.rule.novice_alpha} "
-            "profile:",
-            "",
-            _eta_table(artifact.eta0.tolist(), list(artifact.phase_names)),
-            "",
-            *[f"![{p}](oracle/plots/{p})" for p in plots],
-            "",
-            "## 2. Training (same seed, envs and budget)",
-            f"{cfg.num_envs} envs x 24 steps x {cfg.iterations} iterations = {env_steps} env steps "
-            f"per run; baseline {time_str(times['train baseline'])}, A2CF + warm start "
-            f"{time_str(times['train a2cf_warmstart'])}. Warm start: {warm['coach']} "
-            f"(`--warmstart {warmstart}`); held-out fit of the distilled head, R^2 mx "
-            f"{fit['mx']['r2']:.2f}, my {fit['my']['r2']:.2f}, fz {fit['fz']['r2']:.2f}; the coach "
-            f"helps in {100 * warm['share_of_states_helped']:.0f} % of the visited states.",
-            "",
-            "![learning curves](learning_curves.png)",
-            "",
-            "## 3. Evaluation, assistance off",
-            "| run | survival (training physics) | return | survival (sim2sim) | return (sim2sim) |",
-            "|---|---|---|---|---|",
-            *rows,
-            "",
-            *videos,
-            "",
-            "## What this budget shows",
-            f"{env_steps} env steps per run is a smoke-scale budget (the paper trains walking for "
-            "~10^9 steps on a GPU): it shows the pipeline end to end and the first trend of the "
-            "curves, not a converged skill or a significant difference between the methods. Bigger "
-            "budgets: `a2cf-mb demo --iterations 500 --num-envs 256`; the measured comparisons are in "
-            "docs/training.md and docs/results/.",
-            "",
-        ]
+    times.update(run_lanes(lanes, board, env))
+
+    summary = build_summary(
+        TASK,
+        config={
+            **dataclasses.asdict(cfg),
+            "eval_interval": cfg.eval_interval,
+            "a2cf_variant_flags": list(A2CF_VARIANT_FLAGS),
+        },
+        oracle=oracle_entry(
+            out, "a2cf-mb " + shlex.join(oracle_arguments(Path("OUT"))), times["oracle"]
+        ),
+        runs={
+            name: read_run(
+                out,
+                name,
+                arguments,
+                times[f"train {name}"],
+                times[f"eval {name}"],
+                task.target.metric,
+            )
+            for name, arguments in commands.items()
+        },  # fmt: skip
+        target={
+            "describe": task.target.describe(),
+            "metric": task.target.metric,
+            "max_metric": task.target.max_metric,
+            "min_survival": task.target.min_survival,
+            "fall_error": task.skill.fall_error_rad,
+            "one_episode_of_the_mean": task.skill.fall_error_rad / cfg.eval_envs,
+            "episode_length_s": task.episode_length_s,
+        },
+        wall_time_s=time.monotonic() - start,
+    )
+    summary["figure"] = plot_curves(out, summary)
+    atomic_write_json(out / SUMMARY_FILE, summary)
+    report = out / REPORT_FILE
+    atomic_write_text(report, render_report(summary, out))
+    board.message(
+        f"demo done in {duration_str(summary['wall_time_s'])}: {report}, {out / SUMMARY_FILE}\n"
+        + verdict(summary)
+    )
+    return report
+
+
+def _oracle_stage(out: Path) -> Stage:
+    """Stage 1: ``a2cf-mb solve-dance`` into ``<out>/oracle``."""
+    from optimal_control.artifact import OracleArtifact
+
+    log = out / LOGS_DIR / "oracle.log"
+
+    def done(wall_s: float) -> str:
+        art = OracleArtifact.read_summary(out / ORACLE_DIR)
+        bounds = "; ".join(
+            f"{phase}: force [{', '.join(f'{v:.1f}' for v in row[:3])}] N, torque "
+            f"[{', '.join(f'{v:.1f}' for v in row[3:])}] N m"
+            for phase, row in zip(art.phase_names, art.eta0.tolist(), strict=True)
+        )
+        return f"[1/3] oracle: done in {duration_str(wall_s)}; eta0 {bounds}"
+
+    return Stage(
+        label="oracle",
+        argv=child_command(oracle_arguments(out)),
+        log=log,
+        status=lambda t: f"{'oracle':<10} {clock_str(t):>7}  wrench QP along the dance reference",
+        done=done,
+        start=f"[1/3] oracle: a2cf-mb solve-dance -> {out / ORACLE_DIR} (log {log})",
     )
 
 
-def time_str(seconds: float) -> str:
-    """``12 s`` / ``3.4 min``."""
-    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+def _run_lane(
+    cfg: DemoConfig, name: str, arguments: list[str], out: Path, metric: str
+) -> list[Stage]:
+    """Stages 2 and 3 of run ``name``: its training (live status from its log and run folder),
+    then the evaluation of its policy alone."""
+    run_dir = out / RUNS_DIR / name
+    train_log = out / LOGS_DIR / f"train_{name}.log"
+    eval_log = out / LOGS_DIR / f"eval_{name}.log"
+    follower = TrainFollower(train_log, run_dir, cfg.iterations, warmstart=name == A2CF)
+
+    def train_done(wall_s: float) -> str:
+        m = json.loads((run_dir / METRICS_FILE).read_text())
+        steps = sum(r["env_steps"] for r in m["iterations"])
+        alone = format_alone(m.get("alone_last"), metric)
+        return (
+            f"[2/3] train {name}: done in {duration_str(wall_s)}, {m['iterations_done']} "
+            f"iterations, {steps:,} env steps" + (f"; alone at the end: {alone}" if alone else "")
+        )
+
+    def eval_done(wall_s: float) -> str:
+        e = json.loads((run_dir / EVAL_FILE).read_text())
+        video = relative(e.get("video"), out) or e.get("video_note", "no video")
+        return (
+            f"[3/3] eval {name}: done in {duration_str(wall_s)}; alone: {format_alone(e, metric)} "
+            f"(training physics), survival {e['sim2sim']['survival_fraction']:.0%} (sim2sim); "
+            f"{video}"
+        )
+
+    what = "training physics, sim2sim" + (", video" if cfg.video else "")
+    return [
+        Stage(
+            label=f"train {name}",
+            argv=child_command(arguments),
+            log=train_log,
+            status=lambda t: format_train_status(name, follower.poll(), t, metric),
+            done=train_done,
+            start=f"[2/3] train {name}: a2cf-mb {shlex.join(arguments)} (log {train_log})",
+        ),
+        Stage(
+            label=f"eval {name}",
+            argv=child_command(eval_arguments(cfg, name, out)),
+            log=eval_log,
+            status=lambda t: f"{name:<10} {clock_str(t):>7}  evaluating alone: {what}",
+            done=eval_done,
+            start=f"[3/3] eval {name}: policy alone, {cfg.eval_envs} envs, {what} (log {eval_log})",
+        ),
+    ]

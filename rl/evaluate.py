@@ -7,6 +7,7 @@ import dataclasses
 import io
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ from rsl_rl.env import VecEnv
 from rsl_rl.runners import OnPolicyRunner
 
 from optimal_control.files import atomic_write_json
+from rl.agents.models import ASSIST_ACTION_DIM
 from rl.agents.modes import MotionOnlyEnv, get_mode
 from rl.alone_eval import AloneEvalConfig, rollout_alone
 from rl.envs.vec_env import G1VecEnv
@@ -40,6 +42,7 @@ class EvalConfig:
     seed: int = 1  # env seed (differs from training's default 0) [-]
     use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
+    video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length [s]
     sim2sim: bool = False  # also roll the ONNX policy out in the second simulator (rl.sim2sim)
 
     def __post_init__(self) -> None:
@@ -92,6 +95,8 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
 
     with contextlib.closing(env):
         alone = rollout_alone(env, policy, cfg.num_steps, out_dir=run_dir, on_step=record)
+        if cfg.video:
+            _extend_video(env, policy, qpos_env0, round(cfg.video_min_s / env.step_dt_s))
     num_steps = alone["num_steps"]
     result = {
         "run_dir": str(run_dir),
@@ -129,6 +134,20 @@ def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch
     state = torch.load(path, weights_only=False)
     runner.alg.load(state, {"actor": True}, strict=True)
     return runner.alg.get_policy().motion_policy().eval()
+
+
+def _extend_video(
+    env: G1VecEnv, policy: Callable[[Any], torch.Tensor], qpos_env0: list[np.ndarray], frames: int
+) -> None:
+    """Append env 0's frames, across its resets, until the video has ``frames`` frames (a policy
+    that falls at once still gets a video of several seconds: fall, respawn, fall)."""
+    zeros = torch.zeros(env.num_envs, ASSIST_ACTION_DIM)
+    obs = env.get_observations()
+    with torch.inference_mode():
+        while len(qpos_env0) < frames:
+            actions = policy(obs).reshape(env.num_envs, env.num_actions - ASSIST_ACTION_DIM)
+            obs, _, _, _ = env.step(torch.cat([actions, zeros], dim=-1))
+            qpos_env0.append(env.state[0, env.layout.qpos].copy())
 
 
 def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:

@@ -198,7 +198,9 @@ def test_per_phase_bounds_follow_algorithm_1_independently_in_the_real_env() -> 
         eta0 = env.task.default_assist_bound()
         torch.testing.assert_close(eta0, torch.tensor(PAPER_ETA0["backflip"]["all"]).float())
         assert not torch.allclose(eta0[0], eta0[2])  # the paper's rows differ per phase
-        event = CurriculumEvent(AssistCurriculum(eta0, CurriculumConfig(**PAPER_RULES)), steps_per_iteration=6)
+        event = CurriculumEvent(
+            AssistCurriculum(eta0, CurriculumConfig(**PAPER_RULES)), steps_per_iteration=6
+        )
         env.attach_curriculum(event)
         env.set_random_mask_prob(0.0)
         row = None

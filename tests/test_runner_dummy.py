@@ -97,7 +97,9 @@ CFG = TrainConfig(
 def make_runner(run_dir, total: int, keep: int = 2) -> tuple[DummyAssistEnv, A2CFRunner]:
     torch.manual_seed(0)
     env = DummyAssistEnv()
-    env.attach_curriculum(CurriculumEvent(AssistCurriculum(ETA0, CurriculumConfig(**PAPER_RULES)), STEPS))
+    env.attach_curriculum(
+        CurriculumEvent(AssistCurriculum(ETA0, CurriculumConfig(**PAPER_RULES)), STEPS)
+    )
     runner = A2CFRunner(env, rsl_rl_config(CFG, get_mode("a2cf")), run_dir, get_mode("a2cf"),
                         total_iterations=total, keep_interval=keep)  # fmt: skip
     return env, runner

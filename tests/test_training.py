@@ -10,6 +10,7 @@ import torch
 
 from a2cf_mb.cli import main as cli_main
 from optimal_control.bounds import PAPER_ETA0
+from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
 from rl.evaluate import EvalConfig, evaluate
 from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, train
@@ -42,6 +43,10 @@ def tiny_config(tmp_path, mode: str, **changes) -> TrainConfig:
         model=TINY_MODEL,
     )
     return dataclasses.replace(base, **changes)
+
+
+MEAN_RULE = CurriculumConfig(force_measure="mean")
+"""The paper's force rule (the default has none), with the alone envs of the default."""
 
 
 def read_jsonl(path) -> list[dict]:
@@ -139,7 +144,7 @@ def test_cli_train_then_eval(tmp_path) -> None:
     assert cli_main(["train", "--resume", str(run), "--iterations", "2"]) == 0
     assert len(read_jsonl(run / CURRICULUM_LOG)) == 2
     video = tmp_path / "eval.mp4"
-    result = evaluate(run, EvalConfig(num_envs=4, num_steps=20, video=str(video)))
+    result = evaluate(run, EvalConfig(num_envs=4, num_steps=20, video=str(video), video_min_s=1.0))
     assert result["num_steps"] == 20 and 0.0 <= result["survival_fraction"] <= 1.0
     assert video.is_file() and video.stat().st_size > 0
     assert (run / "eval.json").is_file()
@@ -170,7 +175,7 @@ def test_curriculum_shrinks_an_unused_bound_in_real_training(tmp_path) -> None:
     # A near-silent assist head (std 0.02 before tanh) applies far less than half the bound:
     # Algorithm 1 must shrink eta by (1 - delta) after every iteration.
     ppo = dataclasses.replace(TINY_PPO, assist_init_noise_std=0.02)
-    result = train(tiny_config(tmp_path, "a2cf", ppo=ppo), verbose=False)
+    result = train(tiny_config(tmp_path, "a2cf", ppo=ppo, curriculum=MEAN_RULE), verbose=False)
     log = read_jsonl(result.run_dir / CURRICULUM_LOG)
     eta0 = torch.tensor(WALK_ROW)
     for k, line in enumerate(log, start=1):
@@ -189,10 +194,10 @@ def test_killed_and_resumed_run_equals_the_uninterrupted_one(tmp_path) -> None:
     """Resume continues bit for bit on CPU (env rows, RNG streams, episode counters, history
     buffers, curriculum statistics, logger), here with the bound shrinking every iteration."""
     ppo = dataclasses.replace(TINY_PPO, assist_init_noise_std=0.02)
-    whole = train(tiny_config(tmp_path, "a2cf", iterations=4, run_name="whole", ppo=ppo),
-                  verbose=False)  # fmt: skip
-    part = train(tiny_config(tmp_path, "a2cf", iterations=2, run_name="part", ppo=ppo),
-                 verbose=False)  # fmt: skip
+    whole = train(tiny_config(tmp_path, "a2cf", iterations=4, run_name="whole", ppo=ppo,
+                              curriculum=MEAN_RULE), verbose=False)  # fmt: skip
+    part = train(tiny_config(tmp_path, "a2cf", iterations=2, run_name="part", ppo=ppo,
+                             curriculum=MEAN_RULE), verbose=False)  # fmt: skip
     log_before = read_jsonl(part.run_dir / CURRICULUM_LOG)
     assert log_before[1]["eta"] != log_before[0]["eta"]  # the bound moved before the "kill"
     resumed = train(TrainConfig(resume=str(part.run_dir), iterations=4), verbose=False)
