@@ -108,7 +108,8 @@ def whole_clip_task(task: TaskConfig) -> TaskConfig:
     frames = int(lib.length.max())
     return dataclasses.replace(
         task,
-        episode_length_s=(frames - 1) * task.commands.step_dt_s,
+        # frames - 1 steps; half a step less so the env's ceil(length / dt) cannot round up
+        episode_length_s=(frames - 1.5) * task.commands.step_dt_s,
         commands=dataclasses.replace(task.commands, min_frames_left=frames),
     )
 
