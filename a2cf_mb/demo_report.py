@@ -355,7 +355,12 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
     ]
     # collect + learn of the slower run (rsl-rl's iteration time; the runs shared the cores)
     seconds_per_iteration = max(r["mean_iteration_time_s"] or 0.0 for r in runs.values())
-    flags = " ".join(cfg["a2cf_variant_flags"]) or "(none)"
+    flags = " ".join(cfg["a2cf_variant_flags"])
+    flags = (
+        f"plus the variant flags `{flags}`"
+        if flags
+        else "with the default curriculum (docs/training.md, \"The curriculum\")"
+    )
     return "\n".join(
         [
             f"# a2cf-mb demo: {summary['task']}, baseline vs A2CF warm-started from the oracle",
@@ -391,8 +396,8 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
                 train_rows,
             ),
             "",
-            f"`{A2CF}`: `--mode a2cf --warmstart OUT/{ORACLE_DIR}` plus the variant flags "
-            f"`{flags}`. Before PPO its warm start distilled the oracle's coach into the force "
+            f"`{A2CF}`: `--mode a2cf --warmstart OUT/{ORACLE_DIR}` {flags}. Before PPO its "
+            "warm start distilled the oracle's coach into the force "
             f"agent in {warm.get('env_steps', 0):,} env steps, not counted in the budget above; "
             "held-out R^2 of the distilled head per axis: "
             + ", ".join(f"{k} {v:.2f}" for k, v in warm.get("held_out_r2", {}).items())

@@ -114,6 +114,7 @@ def rollout_alone(
             result["task_metrics"] = _json_ready(evaluator.finish(folder))
     result["target"] = task.target.describe()
     result["target_reached"] = task.target.reached(result)
+    result["target_progress"] = task.target.progress(result)
     return result
 
 

@@ -293,6 +293,9 @@ class A2CFRunner(OnPolicyRunner):
         row = self.alone_eval(
             self.alg.get_policy().motion_policy(), completed, int(self.logger.tot_timesteps)
         )
+        event = getattr(self.env, "curriculum_event", None)
+        if event is not None:  # the skill measure "evaluation" of Algorithm 1
+            event.curriculum.note_evaluation(row["target_progress"])
         if self.logger.writer is not None:
             for key, value in AloneEvaluation.scalars(row).items():
                 self.logger.writer.add_scalar(key, value, completed)

@@ -102,6 +102,16 @@ class TrainConfig:
             raise ValueError(
                 f"--warmstart needs an assist head; mode '{self.mode}' has none (use a2cf)"
             )
+        if (
+            get_mode(self.mode).assist
+            and self.curriculum.skill_measure == "evaluation"
+            and self.eval.interval <= 0
+        ):
+            raise ValueError(
+                "curriculum skill_measure 'evaluation' needs evaluations of the policy alone "
+                "during training: set --eval-interval > 0, or --curriculum-skill-measure alone "
+                "or helped"
+            )
         batch = self.env.num_envs * self.num_steps_per_env
         if batch < self.ppo.num_mini_batches:
             raise ValueError(

@@ -12,6 +12,7 @@ from test_training import read_jsonl, tiny_config
 
 from rl.alone_eval import AloneEvalConfig
 from rl.evaluate import evaluate_checkpoints
+from rl.curriculum import CurriculumConfig
 from rl.learning_study import summarise_study
 from rl.run_folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
 from rl.runner import train
@@ -20,12 +21,20 @@ from rl.tasks.config import SkillTarget
 EVAL = AloneEvalConfig(interval=1, num_envs=3, seed=7)
 
 
+ALONE_ENVS = CurriculumConfig(skill_measure="alone")
+"""A curriculum that does not read the evaluations (the default's skill measure does)."""
+
+
 def test_evaluations_during_training_leave_training_bit_identical(tmp_path) -> None:
-    with_eval = train(tiny_config(tmp_path, "a2cf", run_name="with", eval=EVAL), verbose=False)
-    without = train(
-        tiny_config(tmp_path, "a2cf", run_name="without", eval=AloneEvalConfig(interval=0)),
+    with_eval = train(
+        tiny_config(tmp_path, "a2cf", run_name="with", eval=EVAL, curriculum=ALONE_ENVS),
         verbose=False,
     )
+    without = train(
+        tiny_config(tmp_path, "a2cf", run_name="without", eval=AloneEvalConfig(interval=0),
+                    curriculum=ALONE_ENVS),
+        verbose=False,
+    )  # fmt: skip
     a = torch.load(with_eval.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     b = torch.load(without.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     for key, value in a["actor_state_dict"].items():
@@ -81,3 +90,25 @@ def test_checkpoint_evaluations_equal_the_ones_during_training(tmp_path) -> None
 )
 def test_skill_target(target, survival, metrics, reached) -> None:
     assert target.reached({"survival_fraction": survival, "task_metrics": metrics}) is reached
+
+
+def test_the_default_curriculum_reads_the_evaluations_alone(tmp_path) -> None:
+    """Skill measure "evaluation": each evaluation's target progress reaches the curriculum (and
+    its checkpoint); without evaluations the run is refused in one line."""
+    run = train(tiny_config(tmp_path, "a2cf", eval=EVAL), verbose=False)
+    rows = read_jsonl(run.run_dir / EVALS_LOG)
+    state = torch.load(run.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
+    progress = state["curriculum"]["evaluated_progress"]
+    assert progress == pytest.approx(rows[-1]["target_progress"])
+    assert rows[-1]["target_progress"] == pytest.approx(rows[-1]["survival_fraction"] / 0.9)
+    with pytest.raises(ValueError, match="--eval-interval > 0"):
+        tiny_config(tmp_path, "a2cf", eval=AloneEvalConfig(interval=0))
+
+
+def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
+    target = SkillTarget(min_survival=0.5, metric="skill_error_rad", max_metric=0.16)
+    result = {"survival_fraction": 0.75, "task_metrics": {"skill_error_rad": 0.32}}
+    assert target.progress(result) == pytest.approx(0.5) and not target.reached(result)
+    result["task_metrics"]["skill_error_rad"] = 0.1
+    assert target.progress(result) == pytest.approx(1.5) and target.reached(result)
+    assert target.progress({"survival_fraction": 1.0}) == 0.0  # metric missing

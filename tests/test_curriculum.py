@@ -327,8 +327,8 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
 
 
 def test_alone_measure_triggers_the_decay_and_helped_progress_does_not() -> None:
-    cur = AssistCurriculum(ETA0)  # the default: the alone envs' skill decides
-    assert cur.cfg.skill_measure == "alone" and cur.cfg.alone_share > 0
+    cur = AssistCurriculum(ETA0, CurriculumConfig(skill_measure="alone"))
+    assert cur.cfg.alone_share > 0
     mid = 0.7 * NORM0  # inside the band: the force rule holds the bound
     cur.update(0, mid, BOTH, skill_progress=1.5, alone_progress=0.1)  # helped skill only
     torch.testing.assert_close(cur.eta, ETA0)
@@ -337,24 +337,29 @@ def test_alone_measure_triggers_the_decay_and_helped_progress_does_not() -> None
     with pytest.raises(ValueError, match="alone envs' progress"):
         cur.update(2, mid, BOTH, skill_progress=0.2)
     with pytest.raises(ValueError, match="alone_share > 0"):
-        CurriculumConfig(alone_share=0.0)
+        CurriculumConfig(skill_measure="alone", alone_share=0.0)
     with pytest.raises(ValueError, match="skill_measure"):
         CurriculumConfig(skill_measure="both")
 
 
 def test_event_averages_the_alone_progress_over_the_rollout() -> None:
-    event = CurriculumEvent(AssistCurriculum(ETA0), steps_per_iteration=2)
+    cfg = CurriculumConfig(skill_measure="alone")
+    event = CurriculumEvent(AssistCurriculum(ETA0, cfg), steps_per_iteration=2)
     zero = {"applied_wrench": torch.zeros(2, 6), "phase": torch.zeros(2, dtype=torch.long)}
     assert event.on_step(zero, skill_progress=0.0, alone_progress=0.6) is None
     row = event.on_step(zero, skill_progress=0.0, alone_progress=1.0)
     assert row["alone_progress"] == pytest.approx(0.8) and row["skill_learned"]
 
 
-def test_no_force_rule_holds_the_bound_until_the_skill_is_learned() -> None:
-    cur = AssistCurriculum(ETA0)  # the default: force rule off
-    assert cur.cfg.force_measure == "none"
+def test_no_force_rule_holds_the_bound_until_the_evaluation_says_learned() -> None:
+    cur = AssistCurriculum(ETA0)  # the default: no force rule, the evaluations alone decide
+    assert (cur.cfg.force_measure, cur.cfg.skill_measure) == ("none", "evaluation")
     for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
-        cur.update(it, 0.1 * NORM0, BOTH, skill_progress=0.0, alone_progress=0.0)
+        cur.update(it, 0.1 * NORM0, BOTH, skill_progress=1.5, alone_progress=1.5)
     torch.testing.assert_close(cur.eta, ETA0)
-    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.0, alone_progress=0.9)
+    cur.note_evaluation(0.9)
+    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.0)
     torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+    other = AssistCurriculum(ETA0)
+    other.load_state_dict(cur.state_dict())
+    assert other.evaluated_progress == 0.9

@@ -359,7 +359,7 @@ def test_tiny_demo_end_to_end(tmp_path, capsys):
     assert summary["comparison"]["metric"] == "skill_error_rad"
     report = (out / "report.md").read_text()
     for needle in ("## 1. The oracle", "## 3. The motion policies alone", "sim2sim",
-                   "| `baseline` |", "| `a2cf_warm` |", "--curriculum-force-measure",
+                   "| `baseline` |", "| `a2cf_warm` |", "--mode a2cf --warmstart OUT/oracle",
                    "## 4. What this shows", "--iterations 1600"):  # fmt: skip
         assert needle in report, needle
     assert (out / "demo_curves.png").stat().st_size > 0

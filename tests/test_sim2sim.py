@@ -16,6 +16,7 @@ from a2cf_mb.cli import main as cli_main
 from rl import terminations
 from rl.agents import A2CFActor
 from rl.alone_eval import AloneEvalConfig
+from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
 from rl.export import export_motion_policy
 from rl.registry import TASKS, make_env
@@ -126,6 +127,7 @@ def test_eval_sim2sim_of_a_walk_flat_run_follows_the_velocity_command(tmp_path) 
     cfg = TrainConfig(
         task="walk-flat", iterations=1, num_steps_per_env=4, out=str(tmp_path), run_name="walk",
         env=EnvConfig(num_envs=4, num_threads=1), eval=AloneEvalConfig(interval=0),
+        curriculum=CurriculumConfig(skill_measure="alone"),
         ppo=PPOConfig(num_mini_batches=2, num_learning_epochs=1),
         model=ModelConfig(motion_hidden_dims=(16,), assist_hidden_dims=(8,),
                           critic_hidden_dims=(16,), encoder_hidden_dims=(16,), latent_dim=2),

@@ -120,6 +120,16 @@ class SkillTarget:
         value = result.get("task_metrics", {}).get(self.metric)
         return value is not None and value <= self.max_metric
 
+    def progress(self, result: dict[str, Any]) -> float:
+        """How close an evaluation result is to the target, >= 1 where :meth:`reached`: the
+        smaller of ``survival / min_survival`` and ``max_metric / metric`` (0 for a missing
+        metric)."""
+        ratios = [result["survival_fraction"] / self.min_survival] if self.min_survival else []
+        if self.metric:
+            value = result.get("task_metrics", {}).get(self.metric)
+            ratios.append(0.0 if value is None else self.max_metric / max(value, 1e-9))
+        return float(min(ratios, default=1.0))
+
     def describe(self) -> str:
         """One line, e.g. ``survival >= 0.9 and lin_vel_error_mps <= 0.25``."""
         text = f"survival >= {self.min_survival:g}"
