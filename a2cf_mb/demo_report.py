@@ -359,7 +359,7 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
     flags = (
         f"plus the variant flags `{flags}`"
         if flags
-        else "with the default curriculum (docs/training.md, \"The curriculum\")"
+        else 'with the default curriculum (docs/training.md, "The curriculum")'
     )
     return "\n".join(
         [

@@ -11,8 +11,8 @@ import torch
 from test_training import read_jsonl, tiny_config
 
 from rl.alone_eval import AloneEvalConfig
-from rl.evaluate import evaluate_checkpoints
 from rl.curriculum import CurriculumConfig
+from rl.evaluate import evaluate_checkpoints
 from rl.learning_study import summarise_study
 from rl.run_folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
 from rl.runner import train
