@@ -71,10 +71,9 @@ TASK = "dance"
 alone reaches its target within a few M env steps, docs/results/skills_learn)."""
 A2CF_VARIANT_FLAGS: tuple[str, ...] = ()
 """``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <oracle>``; the report
-and summary.json print them. Empty: the default lifecycle (alone envs decide the skill-learned
-decay, no force rule; docs/training.md), the closest to the baseline of the variants measured in
-docs/results/a2cf_lifecycle (the quantile force rule never moved the warm-started bound there, so
-it behaves as the default)."""
+and summary.json print them. Empty: the default curriculum (weaning by the helped skill at 0.6
+of its target, no force rule, a quarter of the envs never helped; docs/training.md), the variant
+closest to the baseline of those measured in docs/results/a2cf_lifecycle."""
 
 
 @dataclass(frozen=True)

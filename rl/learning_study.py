@@ -174,7 +174,8 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
 
     fig, axes = plt.subplots(1, 4, figsize=(19, 3.8))
     metric_name = None
-    for run_dir in map(Path, run_dirs):
+    colors = plt.get_cmap("tab10" if len(run_dirs) <= 10 else "tab20")
+    for index, run_dir in enumerate(map(Path, run_dirs)):
         summary = run_summary(run_dir)
         label = f"{summary['variant']} s{summary['seed']}"
         metric_name = metric_name or summary["metric"]
@@ -182,11 +183,10 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
             run_dir / METRICS_FILE).is_file() else {"iterations": []}  # fmt: skip
         rows = metrics["iterations"]
         steps = np.cumsum([r["env_steps"] for r in rows]) / 1e6
-        color = None
+        color = colors(index % colors.N)
         if summary["mode"] != "baseline" and rows:
             eta = [max(r["eta_norm"]) if r["eta_norm"] else 0.0 for r in rows]
-            (line,) = axes[0].plot(steps, eta, label=label)
-            color = line.get_color()
+            axes[0].plot(steps, eta, color=color, label=label)
             axes[1].plot(steps, [r["applied_force_n"] for r in rows], color=color, label=label)
             axes[2].plot(steps, [r["skill_progress"] or 0.0 for r in rows], color=color,
                          label=f"{label} helped")  # fmt: skip
@@ -196,11 +196,10 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
                              label=f"{label} alone envs")  # fmt: skip
         evals = read_evals(run_dir)
         x, y = curve_arrays(evals, "survival_fraction")
-        (line,) = axes[3].plot(x / 1e6, y, marker=".", color=color, label=f"{label} survival")
+        axes[3].plot(x / 1e6, y, marker=".", color=color, label=f"{label} survival")
         if summary["metric"]:
             x, y = curve_arrays(evals, summary["metric"])
-            axes[3].plot(x / 1e6, y, ls="--", color=line.get_color(),
-                         label=f"{label} {summary['metric']}")  # fmt: skip
+            axes[3].plot(x / 1e6, y, ls="--", color=color, label=f"{label} {summary['metric']}")
     axes[0].set_ylabel("|eta| of the largest phase [N, Nm]")
     axes[1].set_ylabel("applied force, mean |F| [N]")
     axes[2].set_ylabel("skill progress in training (1 = target)")

@@ -92,17 +92,18 @@ def test_skill_target(target, survival, metrics, reached) -> None:
     assert target.reached({"survival_fraction": survival, "task_metrics": metrics}) is reached
 
 
-def test_the_default_curriculum_reads_the_evaluations_alone(tmp_path) -> None:
+def test_the_evaluation_measure_reads_the_evaluations_alone(tmp_path) -> None:
     """Skill measure "evaluation": each evaluation's target progress reaches the curriculum (and
     its checkpoint); without evaluations the run is refused in one line."""
-    run = train(tiny_config(tmp_path, "a2cf", eval=EVAL), verbose=False)
+    by_eval = CurriculumConfig(skill_measure="evaluation")
+    run = train(tiny_config(tmp_path, "a2cf", eval=EVAL, curriculum=by_eval), verbose=False)
     rows = read_jsonl(run.run_dir / EVALS_LOG)
     state = torch.load(run.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     progress = state["curriculum"]["evaluated_progress"]
     assert progress == pytest.approx(rows[-1]["target_progress"])
     assert rows[-1]["target_progress"] == pytest.approx(rows[-1]["survival_fraction"] / 0.9)
     with pytest.raises(ValueError, match="--eval-interval > 0"):
-        tiny_config(tmp_path, "a2cf", eval=AloneEvalConfig(interval=0))
+        tiny_config(tmp_path, "a2cf", eval=AloneEvalConfig(interval=0), curriculum=by_eval)
 
 
 def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:

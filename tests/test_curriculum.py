@@ -351,15 +351,28 @@ def test_event_averages_the_alone_progress_over_the_rollout() -> None:
     assert row["alone_progress"] == pytest.approx(0.8) and row["skill_learned"]
 
 
+def test_the_default_weans_by_the_helped_skill_with_no_force_rule() -> None:
+    cur = AssistCurriculum(ETA0)
+    assert (cur.cfg.force_measure, cur.cfg.skill_measure) == ("none", "helped")
+    for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
+        cur.update(it, 0.1 * NORM0, BOTH, skill_progress=0.59, alone_progress=1.5)
+    torch.testing.assert_close(cur.eta, ETA0)
+    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.6)
+    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+    cur.update(4, 0.1 * NORM0, BOTH, skill_progress=0.5)  # the helped skill dropped: pause
+    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+
+
 def test_no_force_rule_holds_the_bound_until_the_evaluation_says_learned() -> None:
-    cur = AssistCurriculum(ETA0)  # the default: no force rule, the evaluations alone decide
-    assert (cur.cfg.force_measure, cur.cfg.skill_measure) == ("none", "evaluation")
+    cur = AssistCurriculum(
+        ETA0, CurriculumConfig(skill_measure="evaluation", skill_learned_progress=0.8)
+    )
     for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
         cur.update(it, 0.1 * NORM0, BOTH, skill_progress=1.5, alone_progress=1.5)
     torch.testing.assert_close(cur.eta, ETA0)
     cur.note_evaluation(0.9)
     cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.0)
     torch.testing.assert_close(cur.eta, 0.8 * ETA0)
-    other = AssistCurriculum(ETA0)
+    other = AssistCurriculum(ETA0, cur.cfg)
     other.load_state_dict(cur.state_dict())
     assert other.evaluated_progress == 0.9
