@@ -9,6 +9,7 @@ then the evaluation rows' order only). Used by ``a2cf-mb bench learn`` and ``doc
 
 from __future__ import annotations
 
+import gzip
 import json
 from collections import defaultdict
 from pathlib import Path
@@ -32,13 +33,22 @@ def read_evals(run_dir: Path) -> list[dict[str, Any]]:
     return []
 
 
+def read_metric_rows(run_dir: Path) -> list[dict[str, Any]]:
+    """The run's per-iteration rows of ``metrics.json`` (or of a committed ``metrics.json.gz``;
+    none for a run still training)."""
+    path = run_dir / METRICS_FILE
+    if path.is_file():
+        return json.loads(path.read_text()).get("iterations", [])
+    packed = path.with_name(path.name + ".gz")
+    if packed.is_file():
+        return json.loads(gzip.decompress(packed.read_bytes())).get("iterations", [])
+    return []
+
+
 def _wall_s_at(run_dir: Path, iteration: int) -> float | None:
     """Training wall time [s] of the first ``iteration`` iterations (metrics.json rows)."""
-    path = run_dir / METRICS_FILE
-    if not path.is_file():
-        return None
-    rows = json.loads(path.read_text()).get("iterations", [])
-    if len(rows) < iteration:
+    rows = read_metric_rows(run_dir)
+    if not rows or len(rows) < iteration:
         return None
     return float(sum(r["iteration_time_s"] for r in rows[:iteration]))
 
@@ -179,9 +189,7 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
         summary = run_summary(run_dir)
         label = f"{summary['variant']} s{summary['seed']}"
         metric_name = metric_name or summary["metric"]
-        metrics = json.loads((run_dir / METRICS_FILE).read_text()) if (
-            run_dir / METRICS_FILE).is_file() else {"iterations": []}  # fmt: skip
-        rows = metrics["iterations"]
+        rows = read_metric_rows(run_dir)
         steps = np.cumsum([r["env_steps"] for r in rows]) / 1e6
         color = colors(index % colors.N)
         if summary["mode"] != "baseline" and rows:
