@@ -85,16 +85,21 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
 
 def run_variant(cfg: Any) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
-    warm-started, ``+paper`` when its curriculum follows the paper's rules."""
-    from rl.curriculum import PAPER_RULES
+    warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
+    skill trigger (``skill:<measure>@<progress>``) where it differs from today's default."""
+    from rl.curriculum import PAPER_RULES, CurriculumConfig
 
     name = cfg.mode
     if cfg.warmstart:
         name += "+warm"
-    if cfg.mode != "baseline" and all(
-        getattr(cfg.curriculum, key) == value for key, value in PAPER_RULES.items()
-    ):
-        name += "+paper"
+    if cfg.mode == "baseline":
+        return name
+    cur, default = cfg.curriculum, CurriculumConfig()
+    if all(getattr(cur, key) == value for key, value in PAPER_RULES.items()):
+        return name + "+paper"
+    trigger = (cur.skill_measure, cur.skill_learned_progress)
+    if trigger != (default.skill_measure, default.skill_learned_progress):
+        name += f" skill:{cur.skill_measure}@{cur.skill_learned_progress:g}"
     return name
 
 
@@ -182,7 +187,7 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 4, figsize=(19, 3.8))
+    fig, axes = plt.subplots(1, 5, figsize=(24, 4.2))
     metric_name = None
     colors = plt.get_cmap("tab10" if len(run_dirs) <= 10 else "tab20")
     for index, run_dir in enumerate(map(Path, run_dirs)):
@@ -204,19 +209,22 @@ def lifecycle_figure(run_dirs: list[str | Path], path: str | Path, title: str = 
                              label=f"{label} alone envs")  # fmt: skip
         evals = read_evals(run_dir)
         x, y = curve_arrays(evals, "survival_fraction")
-        axes[3].plot(x / 1e6, y, marker=".", color=color, label=f"{label} survival")
+        axes[3].plot(x / 1e6, y, marker=".", color=color, label=label)
         if summary["metric"]:
             x, y = curve_arrays(evals, summary["metric"])
-            axes[3].plot(x / 1e6, y, ls="--", color=color, label=f"{label} {summary['metric']}")
+            axes[4].plot(x / 1e6, y, marker=".", color=color, label=label)
+            axes[4].axhline(summary["max_metric"], color="k", ls="--", lw=0.8)
     axes[0].set_ylabel("|eta| of the largest phase [N, Nm]")
     axes[1].set_ylabel("applied force, mean |F| [N]")
     axes[2].set_ylabel("skill progress in training (1 = target)")
-    axes[3].set_ylabel("policy alone: survival" + (f", {metric_name}" if metric_name else ""))
+    axes[3].set_ylabel("policy alone (evaluations): survival")
     axes[3].set_ylim(-0.02, 1.02)
+    axes[4].set_ylabel(f"policy alone: {metric_name}" if metric_name else "(no task metric)")
     for ax in axes:
         ax.set_xlabel("env steps [M]")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
