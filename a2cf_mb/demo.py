@@ -80,7 +80,7 @@ closest to the baseline of those measured in docs/results/a2cf_lifecycle."""
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 12 min for the whole demo on 2 cores [-]
+    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 15 min for the whole demo on 2 cores (measured 15.3 min) [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
     evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]
