@@ -9,20 +9,23 @@ set -euo pipefail
 OUT=${OUT:-runs/a2cf_lifecycle}
 SEED=${SEED:-0}
 export OMP_NUM_THREADS=1
+# The runs named a2cf / a2cfwarm ran before the default became weaning: their trigger was the
+# alone envs at 0.8 (OLD); the a2cfwean runs are today's default.
+OLD=(--curriculum-skill-measure alone --curriculum-skill-learned-progress 0.8)
 common=(--num-envs 128 --seed "$SEED" --env-num-threads 1 --save-interval 40 --eval-interval 40 --out "$OUT")
 case "${1:-dance}" in
 dance)  # 650 iterations = 2.0 M env steps (the baselines reached the target at 1.47-1.72 M)
   a2cf-mb solve-dance --out "$OUT/oracle_dance" --no-video --overwrite
-  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" --run-name "dance_a2cf_s$SEED" &
-  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" --run-name "dance_a2cfwarm_s$SEED" \
+  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" "${OLD[@]}" --run-name "dance_a2cf_s$SEED" &
+  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" "${OLD[@]}" --run-name "dance_a2cfwarm_s$SEED" \
     --warmstart "$OUT/oracle_dance" --curriculum-force-measure quantile &
-  wait ;;
+  wait
+  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" --run-name "dance_a2cfwean_s$SEED" ;;
 stand)  # 977 iterations = 3.0 M env steps (the budget); no stand oracle exists (standing
   # still needs no wrench): the warm start distils the built-in as-needed posture coach
-  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand_a2cf_s$SEED" &
-  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand_a2cfwarm_s$SEED" \
-    --warmstart posture --curriculum-force-measure quantile &
-  wait ;;
+  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" "${OLD[@]}" --run-name "stand_a2cf_s$SEED" &
+  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand_a2cfwean_s$SEED" &
+  wait ;;  # a warm-started stand run (--warmstart posture) was not made
 ablations)  # on dance: the paper's ablations of plain a2cf
   for mode in no-pi no-id no-rm; do
     a2cf-mb train --task dance --mode "$mode" --iterations 650 "${common[@]}" --run-name "dance_${mode}_s$SEED"
