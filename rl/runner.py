@@ -108,6 +108,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
             "vae_learning_rate": cfg.model.vae_learning_rate,
             "vae_kl_weight": cfg.model.vae_kl_weight,
             "vae_velocity_weight": cfg.model.vae_velocity_weight,
+            "vae_learning_epochs": cfg.model.vae_learning_epochs,
         },
         "actor": {
             "class_name": "rl.agents.models:A2CFActor",

@@ -46,6 +46,7 @@ class ModelConfig:
     vae_learning_rate: float = 1e-3  # Adam learning rate of the history encoder [-]
     vae_kl_weight: float = 1e-3  # beta of the beta-VAE [-]
     vae_velocity_weight: float = 1.0  # weight of the velocity-estimation loss [-]
+    vae_learning_epochs: int = 0  # encoder-update passes over each rollout; 0 = PPO's epochs [-]
 
 
 @dataclass(frozen=True)

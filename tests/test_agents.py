@@ -200,3 +200,27 @@ def test_assist_head_starts_neutral() -> None:
     mean = actor(make_obs(64, seed=5))
     assert mean[:, 29:].abs().max() < 0.05  # tanh(raw) ~ 0: no systematic push before learning
     assert mean[:, :29].abs().max() > 0.05  # the motion head keeps rsl-rl's default init
+
+
+@pytest.mark.parametrize(("vae_epochs", "passes"), [(0, 3), (1, 1)])
+def test_encoder_update_makes_its_own_number_of_passes(vae_epochs: int, passes: int) -> None:
+    """0 follows PPO's epochs (the default, as before); k > 0 makes k passes of 2 mini-batches."""
+    actor = make_actor()
+    critic = MLPModel(make_obs(), {"critic": ["critic"]}, "critic", 1, hidden_dims=(16,))
+    storage = RolloutStorage("rl", N, 4, make_obs(), [35])
+    alg = A2CFPPO(
+        actor, critic, storage, num_learning_epochs=3, num_mini_batches=2,
+        vae_learning_epochs=vae_epochs,
+    )  # fmt: skip
+    fill_storage(alg, 4)
+    steps = []
+    alg.vae_optimizer.register_step_post_hook(lambda *_: steps.append(1))
+    alg.update()
+    assert len(steps) == 2 * passes
+
+
+def test_negative_encoder_epochs_are_refused() -> None:
+    storage = RolloutStorage("rl", N, 4, make_obs(), [35])
+    critic = MLPModel(make_obs(), {"critic": ["critic"]}, "critic", 1, hidden_dims=(16,))
+    with pytest.raises(ValueError, match="vae_learning_epochs"):
+        A2CFPPO(make_actor(), critic, storage, vae_learning_epochs=-1)

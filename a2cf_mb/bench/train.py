@@ -41,6 +41,7 @@ class TrainBenchConfig:
     num_steps_per_env: int = 24  # rollout length [-]
     learning_epochs: tuple[int, ...] = (5,)  # PPO passes over each rollout [-]
     mini_batches: tuple[int, ...] = (4,)  # PPO mini-batches per pass [-]
+    vae_epochs: tuple[int, ...] = (0,)  # history-encoder passes over each rollout; 0 = PPO's [-]
     torch_threads: tuple[int, ...] = (1, 2)  # torch intra-op threads of the learner [-]
     iterations: int = 4  # timed iterations per configuration (after one untimed) [-]
     num_threads: int = 0  # physics threads; 0 = all cores [-]
@@ -68,13 +69,18 @@ class _Timer:
 
 
 def measure_training(
-    cfg: TrainBenchConfig, num_envs: int, epochs: int, mini_batches: int, torch_threads: int
+    cfg: TrainBenchConfig,
+    num_envs: int,
+    epochs: int,
+    mini_batches: int,
+    torch_threads: int,
+    vae_epochs: int = 0,
 ) -> dict[str, Any]:
     """Stage times of ``cfg.iterations`` training iterations of one configuration."""
     from rl.alone_eval import AloneEvalConfig
     from rl.envs.config import EnvConfig
     from rl.runner import build_training, seed_everything
-    from rl.train_config import PPOConfig, TrainConfig
+    from rl.train_config import ModelConfig, PPOConfig, TrainConfig
 
     train_cfg = TrainConfig(
         task=cfg.task,
@@ -85,6 +91,7 @@ def measure_training(
         ppo=dataclasses.replace(
             PPOConfig(), num_learning_epochs=epochs, num_mini_batches=mini_batches
         ),
+        model=ModelConfig(vae_learning_epochs=vae_epochs),
         eval=AloneEvalConfig(interval=0),
         export_onnx=False,
     )
@@ -120,6 +127,7 @@ def measure_training(
         "num_envs": num_envs,
         "epochs": epochs,
         "mini_batches": mini_batches,
+        "vae_epochs": vae_epochs or epochs,
         "torch_threads": torch_threads,
         "samples_per_iteration": num_envs * cfg.num_steps_per_env,
         "iteration_s": wall / cfg.iterations,
@@ -141,10 +149,11 @@ def run_train_benchmark(cfg: TrainBenchConfig = TrainBenchConfig()) -> dict[str,
         for epochs in cfg.learning_epochs:
             for mini in cfg.mini_batches:
                 for threads in cfg.torch_threads:
-                    case = measure_training(cfg, n, epochs, mini, threads)
-                    case["physics_steps_per_s"] = physics
-                    case["end_to_end_over_physics"] = case["end_to_end_steps_per_s"] / physics
-                    results["cases"].append(case)
+                    for vae in cfg.vae_epochs:
+                        case = measure_training(cfg, n, epochs, mini, threads, vae)
+                        case["physics_steps_per_s"] = physics
+                        case["end_to_end_over_physics"] = case["end_to_end_steps_per_s"] / physics
+                        results["cases"].append(case)
     return results
 
 
@@ -152,13 +161,15 @@ def format_results(results: dict[str, Any]) -> str:
     """One line per configuration: rates, the ratio to physics, and the stage shares."""
     lines = [
         f"training iteration time ({results['config']['task']}, baseline), env steps/s and shares:",
-        f"  {'N':>5} {'ep':>3} {'mb':>3} {'thr':>3} {'iter s':>7} {'e2e/s':>7} {'phys/s':>7} {'e2e/phys':>8}"
+        f"  {'N':>5} {'ep':>3} {'mb':>3} {'vae':>3} {'thr':>3} {'iter s':>7} {'e2e/s':>7} "
+        f"{'phys/s':>7} {'e2e/phys':>8}"
         "   env  policy  ppo   vae  other",
     ]
     for c in results["cases"]:
         s = c["share"]
         lines.append(
-            f"  {c['num_envs']:>5} {c['epochs']:>3} {c['mini_batches']:>3} {c['torch_threads']:>3} "
+            f"  {c['num_envs']:>5} {c['epochs']:>3} {c['mini_batches']:>3} "
+            f"{c.get('vae_epochs', c['epochs']):>3} {c['torch_threads']:>3} "
             f"{c['iteration_s']:>7.2f} "
             f"{c['end_to_end_steps_per_s']:>7.0f} {c['physics_steps_per_s']:>7.0f} "
             f"{c['end_to_end_over_physics']:>8.2f}  {s['env']:>4.0%} {s['policy']:>6.0%} "

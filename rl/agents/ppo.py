@@ -36,6 +36,8 @@ class A2CFPPO(PPO):
         vae_learning_rate: Adam learning rate of the encoder.
         vae_kl_weight: ``beta`` of the beta-VAE loss.
         vae_velocity_weight: weight of the velocity-estimation MSE.
+        vae_learning_epochs: passes of the encoder update over each rollout; 0 = PPO's
+            ``num_learning_epochs`` (the encoder update costs about half the PPO update per pass).
         next_obs_group: observation group holding the noise-free ``o_t`` (target of ``t - 1``).
         velocity_group: observation group holding the true base linear velocity [m/s, base frame].
     """
@@ -50,6 +52,7 @@ class A2CFPPO(PPO):
         vae_learning_rate: float = 1e-3,
         vae_kl_weight: float = 1e-3,
         vae_velocity_weight: float = 1.0,
+        vae_learning_epochs: int = 0,
         next_obs_group: str = "policy_clean",
         velocity_group: str = "base_lin_vel",
         optimizer: str = "adam",
@@ -68,6 +71,11 @@ class A2CFPPO(PPO):
         self.vae_optimizer = torch.optim.Adam(self.actor.encoder.parameters(), lr=vae_learning_rate)
         self.vae_kl_weight = vae_kl_weight
         self.vae_velocity_weight = vae_velocity_weight
+        if vae_learning_epochs < 0:
+            raise ValueError(
+                f"vae_learning_epochs must be >= 0 (0: PPO's epochs), got {vae_learning_epochs}"
+            )
+        self.vae_learning_epochs = vae_learning_epochs or self.num_learning_epochs
         self.next_obs_group = next_obs_group
         self.velocity_group = velocity_group
         self._last_obs: TensorDict | None = None
@@ -116,7 +124,7 @@ class A2CFPPO(PPO):
             return sums
         batch_size = max(1, num_samples // self.num_mini_batches)
         num_updates = 0
-        for _ in range(self.num_learning_epochs):
+        for _ in range(self.vae_learning_epochs):
             order = torch.randperm(num_samples, device=history_n.device)
             for start in range(0, num_samples - batch_size + 1, batch_size):
                 idx = order[start : start + batch_size]
