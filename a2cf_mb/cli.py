@@ -10,6 +10,7 @@ import argparse
 import importlib
 import os
 import pickle
+import re
 import sys
 import warnings
 import zipfile
@@ -58,9 +59,72 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     names = {command_name(m): m for m in COMMAND_MODULES}
-    for module_name in [names[command]] if command in names else COMMAND_MODULES:
-        importlib.import_module(module_name).register(subparsers)
+    if command in names:
+        importlib.import_module(names[command]).register(subparsers)
+        return parser
+    for module_name in COMMAND_MODULES:
+        try:
+            importlib.import_module(module_name).register(subparsers)
+        except ModuleNotFoundError as err:
+            if missing_oracle_library(err) is None:
+                raise
+            # A training-only install: the help still lists the oracle's commands, and running
+            # one reports the missing library (main's one line).
+            _register_unavailable(subparsers, command_name(module_name), err)
     return parser
+
+
+ORACLE_LIBRARIES: dict[str, str] = {
+    "pinocchio": "pin",
+    "placo": "placo",
+    "casadi": "casadi",
+    "proxsuite": "proxsuite",
+}
+"""The model-based oracle's solver libraries, import name -> pip package. Training (stand, walk,
+backflip) runs without them; the oracle's commands, ``info`` and the dance task need them."""
+
+
+def missing_oracle_library(exc: BaseException) -> str | None:
+    """The pip package of the oracle library whose import failed in ``exc``, else None."""
+    if isinstance(exc, ModuleNotFoundError) and exc.name:
+        return ORACLE_LIBRARIES.get(exc.name.split(".")[0])
+    return None
+
+
+def _oracle_requirements() -> list[str]:
+    """The oracle libraries as a2cf-mb requires them (``pin==3.8.0``, ...), from its metadata."""
+    from importlib import metadata
+
+    try:
+        required = metadata.requires("a2cf-mb") or []
+    except metadata.PackageNotFoundError:
+        required = []
+    pins = {re.split(r"[<>=!~ ;\[]", r, maxsplit=1)[0]: r.split(";")[0].strip() for r in required}
+    return [pins.get(package, package) for package in ORACLE_LIBRARIES.values()]
+
+
+def oracle_library_message(exc: ModuleNotFoundError) -> str:
+    """The line printed when an oracle library is missing: which, and the command to install."""
+    packages = " ".join(f"'{r}'" for r in _oracle_requirements())
+    return (
+        f"this needs the model-based oracle's solver libraries, and '{exc.name}' is not installed "
+        f"(pip package '{missing_oracle_library(exc)}'): pip install {packages} (a training-only "
+        "install leaves them out, see docs/gpu.md)"
+    )
+
+
+def _register_unavailable(
+    subparsers: argparse._SubParsersAction, name: str, err: ModuleNotFoundError
+) -> None:
+    """A placeholder for a command whose libraries are missing: listed, and failing when run."""
+    parser = subparsers.add_parser(
+        name, help=f"(not available: needs the oracle's libraries, {err.name} is not installed)"
+    )
+
+    def unavailable(args: argparse.Namespace) -> int:
+        raise err
+
+    parser.set_defaults(func=unavailable)
 
 
 DEBUG_ENV = "A2CF_DEBUG"
@@ -89,13 +153,20 @@ solvers or the trainer)."""
 
 
 def is_user_error(exc: BaseException) -> bool:
-    """Whether ``exc`` is an input or outcome error to report in one line (see USER_ERRORS)."""
-    return isinstance(exc, USER_ERRORS) or type(exc).__name__ in USER_ERROR_NAMES
+    """Whether ``exc`` is an input or outcome error to report in one line (see USER_ERRORS), or
+    an oracle library missing from a training-only install."""
+    return (
+        isinstance(exc, USER_ERRORS)
+        or type(exc).__name__ in USER_ERROR_NAMES
+        or missing_oracle_library(exc) is not None
+    )
 
 
 def user_message(exc: BaseException) -> str:
     """The line printed for a user error: the library's message, or for a bare OS error the
-    path, the reason and what to check."""
+    path, the reason and what to check; for a missing oracle library what to install."""
+    if isinstance(exc, ModuleNotFoundError) and missing_oracle_library(exc) is not None:
+        return oracle_library_message(exc)
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return (
             f"{exc.strerror}: '{exc.filename}' ({type(exc).__name__}); check the path, that it is "

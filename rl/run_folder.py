@@ -95,6 +95,11 @@ class LockHolder:
         return f"pid {self.pid} on host {self.host} since {since} UTC ({self.command})"
 
 
+def _torchrun_rank() -> int:
+    """This process's rank in a ``torchrun`` job (0 outside one): only rank 0 writes the folder."""
+    return int(os.environ.get("RANK", "0"))
+
+
 def _process_identity(pid: int) -> str | None:
     """Boot id and start time (clock ticks since boot) of ``pid``: two processes that share a pid
     at different times have different identities. None where ``/proc`` cannot tell."""
@@ -156,7 +161,7 @@ class RunFolderLock:
 
     def acquire(self) -> None:
         """Take the lock (see the class docstring); a stale lock is taken over with a warning."""
-        if int(os.environ.get("RANK", "0")) != 0:
+        if _torchrun_rank() != 0:
             return  # a torchrun job: rank 0 holds the lock for all its processes
         if not self.run_dir.is_dir():
             if not self.create:
@@ -341,20 +346,24 @@ def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
     """The config and checkpoint a run starts from. A new run needs an unused folder; a resume
     takes the saved config (with ``cfg.iterations``, the new total) and the newest readable
     checkpoint, or, killed before its first checkpoint, starts over from iteration 0 (the same
-    seed gives the same run; the lost iterations' logs go)."""
+    seed gives the same run; the lost iterations' logs go). In a torchrun job rank 0 alone checks
+    and cleans the folder: the others may come after it has started writing."""
+    main = _torchrun_rank() == 0
     if not cfg.resume:
-        require_unused(run_dir)
+        if main:
+            require_unused(run_dir)
         return StartPoint(cfg, None, None)
     saved = load_run_config(run_dir)
     cfg = replace(saved, iterations=cfg.iterations, resume=cfg.resume)
     checkpoint = resumable_checkpoint(run_dir)
     if checkpoint is not None:
         return StartPoint(cfg, checkpoint, None)
-    print(
-        f"a2cf-mb train: warning: {run_dir} has no checkpoint yet (stopped during its first "
-        "iteration); starting it again from iteration 0 with its saved config",
-        file=sys.stderr,
-    )
-    for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
-        stale.unlink(missing_ok=True)
+    if main:
+        print(
+            f"a2cf-mb train: warning: {run_dir} has no checkpoint yet (stopped during its first "
+            "iteration); starting it again from iteration 0 with its saved config",
+            file=sys.stderr,
+        )
+        for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
+            stale.unlink(missing_ok=True)
     return StartPoint(cfg, None, json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0"))

@@ -22,6 +22,10 @@ the env as an iteration-rate event (:class:`rl.curriculum.CurriculumEvent`), so 
 training (``torchrun``) works as rsl-rl's does, with the curriculum statistics summed over
 processes. :class:`A2CFRunner` only adds what a run folder needs: checkpoints holding the env and
 curriculum state, the curriculum log, per-iteration metrics and the export.
+
+Under ``torchrun`` (:mod:`rl.distributed`) every process trains into the same run folder, which
+rank 0 alone writes; each rank seeds its envs with ``seed + rank`` and learns on ``cuda:LOCAL_RANK``
+(``--device cuda``) or on the CPU with the gloo backend (``--device cpu``).
 """
 
 from __future__ import annotations
@@ -51,6 +55,16 @@ from optimal_control.files import (
 from rl.agents.modes import ModeSpec, MotionOnlyEnv, get_mode
 from rl.alone_eval import AloneEvaluation
 from rl.curriculum import AssistCurriculum, CurriculumEvent, identical_axis_bounds
+from rl.distributed import (
+    ProcessRank,
+    check_learner_device,
+    close_process_group,
+    init_cpu_process_group,
+    process_rank,
+    rank_device,
+    rank_env_config,
+    rank_seed,
+)
 from rl.envs.vec_env import G1VecEnv
 from rl.registry import get_task
 from rl.run_folder import (  # noqa: F401 - names re-exported for readers of rl.runner
@@ -85,6 +99,7 @@ class TrainResult:
     run_dir: Path  # the run folder
     iterations_done: int  # learning iterations completed in the run so far
     metrics: dict[str, Any]  # the content of metrics.json
+    main_process: bool = True  # this process wrote the run folder (False: a torchrun rank > 0)
 
 
 def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
@@ -238,6 +253,31 @@ class A2CFRunner(OnPolicyRunner):
         self._saved_completed = -1
         self.alone_eval: AloneEvaluation | None = None  # evaluations of the policy alone
 
+    def _configure_multi_gpu(self) -> None:
+        """rsl-rl's multi-process setup (NCCL on ``cuda:LOCAL_RANK``); on the CPU the same with
+        the gloo backend. A single process is rsl-rl's case: nothing is set up."""
+        rank = process_rank()
+        check_learner_device(self.device, rank)
+        if not (rank.distributed and self.device == "cpu"):
+            super()._configure_multi_gpu()
+            return
+        # The fields rsl-rl's version sets (the algorithm and the logger read them).
+        self.gpu_world_size = rank.world_size
+        self.is_distributed = True
+        self.gpu_local_rank = rank.local_rank
+        self.gpu_global_rank = rank.rank
+        self.cfg["multi_gpu"] = {
+            "global_rank": rank.rank,
+            "local_rank": rank.local_rank,
+            "world_size": rank.world_size,
+        }
+        init_cpu_process_group(rank)
+
+    @property
+    def is_main_process(self) -> bool:
+        """Whether this process writes the run folder (rank 0 of a torchrun job, or the only one)."""
+        return self.gpu_global_rank == 0
+
     @property
     def completed_iterations(self) -> int:
         """Iterations completed and checkpointed so far."""
@@ -328,9 +368,16 @@ class A2CFRunner(OnPolicyRunner):
         self.env.load_state_dict(state["env"])
         self.logger.load_state_dict(state["logger"])
         torch.set_rng_state(state["torch_rng_state"])
-        self._write_curriculum_log()
         if self.alone_eval is not None:
             self.alone_eval.rows = list(state.get("alone_eval", []))
+        if not self.is_main_process:
+            # The checkpoint holds rank 0's envs and random state: the other ranks draw their
+            # own from here on, or every rank would collect the same episodes.
+            torch.manual_seed(self.env.cfg.seed)  # seed + rank (rank_env_config)
+            self.env.generator.manual_seed(self.env.cfg.seed)
+            return
+        self._write_curriculum_log()
+        if self.alone_eval is not None:
             self.alone_eval.write()
 
     def _write_curriculum_log(self) -> None:
@@ -375,7 +422,7 @@ def build_training(
     task = resolve_task(cfg)
     if eta0 is None:
         eta0 = warmstart_eta0(cfg, task)
-    env = G1VecEnv(cfg.env, task)
+    env = G1VecEnv(rank_env_config(cfg.env), task)
     if cfg.warmstart_motion:
         try:
             require_joint_reference(env)
@@ -391,8 +438,9 @@ def build_training(
         env.set_less_assist_reward(False)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
     rsl_cfg = rsl_rl_config(cfg, mode)
+    device = rank_device(cfg.device)
     runner = A2CFRunner(
-        learner_env, rsl_cfg, run_dir, mode, cfg.iterations, cfg.save_interval, device=cfg.device
+        learner_env, rsl_cfg, run_dir, mode, cfg.iterations, cfg.save_interval, device=device
     )
     if cfg.eval.interval > 0:
         runner.alone_eval = AloneEvaluation(task, cfg.env, cfg.eval, run_dir)
@@ -409,14 +457,36 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
             an oracle artifact's bounds come in).
         verbose: print rsl-rl's per-iteration progress block.
 
+    Under ``torchrun`` every process calls this with the same config (see :mod:`rl.distributed`):
+    a new run then needs ``cfg.run_name``, since the default name holds the time each process
+    reads, and the result of a rank other than 0 has the metrics but wrote no file.
+
     Raises:
         rl.run_folder.RunFolderBusyError: another process is training in the run folder.
     """
+    check_distributed(cfg, process_rank())
     run_dir = Path(cfg.resume) if cfg.resume else new_run_dir(cfg)
     # One process at a time writes a run folder: the lock comes before anything in it is read
     # (for a resume) or written.
     with RunFolderLock(run_dir, create=not cfg.resume):
         return _train_locked(cfg, run_dir, eta0, verbose)
+
+
+def check_distributed(cfg: TrainConfig, rank: ProcessRank) -> None:
+    """Refuse, under torchrun, what the processes of the job could not agree on."""
+    if not rank.distributed:
+        return
+    if not cfg.resume and not cfg.run_name:
+        raise ValueError(
+            "under torchrun every process must train into the same run folder: give it a name "
+            "with --run-name (the default name holds the time, which the processes read apart)"
+        )
+    if get_mode(cfg.mode).assist and cfg.curriculum.skill_measure == "evaluation":
+        raise ValueError(
+            "curriculum skill_measure 'evaluation' is not supported under torchrun (only rank 0 "
+            "evaluates the policy alone, so the ranks' curricula would part): use "
+            "--curriculum-skill-measure helped or alone"
+        )
 
 
 def _train_locked(
@@ -427,7 +497,7 @@ def _train_locked(
     cfg, checkpoint = start.cfg, start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
         eta0 = torch.tensor(start.saved_eta0)
-    seed_everything(cfg.seed)
+    seed_everything(rank_seed(cfg.seed))
     if cfg.torch_threads:
         torch.set_num_threads(cfg.torch_threads)
     quiet: Any = contextlib.nullcontext() if verbose else contextlib.redirect_stdout(io.StringIO())
@@ -437,12 +507,15 @@ def _train_locked(
     # other ranks of a torchrun job take no lock.
     run_dir.mkdir(parents=True, exist_ok=True)
     runner.add_git_repo_to_log(str(Path(__file__).resolve().parent))
+    main = runner.is_main_process
     if checkpoint is not None:
         runner.load_checkpoint(checkpoint)
-    if not (run_dir / CONFIG_FILE).is_file():
+    if main and not (run_dir / CONFIG_FILE).is_file():
         _write_run_config(run_dir, cfg, env, rsl_cfg)
     if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
-        atomic_write_json(run_dir / WARMSTART_FILE, warm_start(cfg, env, runner))
+        report = warm_start(cfg, env, runner)
+        if main:
+            atomic_write_json(run_dir / WARMSTART_FILE, report)
     try:
         with quiet:
             # Random episode counters only at the start of a run: a resume continues the
@@ -450,9 +523,14 @@ def _train_locked(
             _learn(runner, cfg, random_start=cfg.random_episode_start and not checkpoint)
     finally:
         env.close()
-    metrics = _finish(runner, cfg, env, run_dir)
+        if runner.is_distributed:
+            close_process_group()
+    metrics = _finish(runner, cfg, env, run_dir) if main else summarise(runner, cfg)
     return TrainResult(
-        run_dir=run_dir, iterations_done=runner.completed_iterations, metrics=metrics
+        run_dir=run_dir,
+        iterations_done=runner.completed_iterations,
+        metrics=metrics,
+        main_process=main,
     )
 
 

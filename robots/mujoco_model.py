@@ -27,8 +27,6 @@ import numpy as np
 
 from robots import g1
 from robots.assets import g1_mesh_dir, g1_urdf_path
-from robots.conventions import pin_to_mj_qpos
-from robots.pinocchio_model import build_pinocchio_model
 
 STAND_KEYFRAME = "stand"
 FLOOR_GEOM = "floor"
@@ -153,6 +151,27 @@ def _world(spec: mujoco.MjSpec, cfg: MujocoModelConfig) -> None:
         )
 
 
+def standing_qpos(spec: mujoco.MjSpec) -> np.ndarray:
+    """The standing configuration (nq,) of a G1 spec with its sole sites: the joints at
+    :data:`robots.g1.STAND_JOINT_POS_RAD`, the pelvis upright above the origin and lowered until
+    the lower sole touches z = 0. The same pose as the Pinocchio model's ``q_stand`` (a test
+    checks it), computed with MuJoCo alone, so the simulator needs no Pinocchio."""
+    kinematic = spec.copy()
+    for geom in list(kinematic.geoms):
+        kinematic.delete(geom)  # kinematics only: no mesh to load or process
+    for mesh in list(kinematic.meshes):
+        kinematic.delete(mesh)
+    model = kinematic.compile()
+    data = mujoco.MjData(model)
+    data.qpos[:] = 0.0
+    data.qpos[3] = 1.0  # free joint: identity orientation (w, x, y, z)
+    for joint, angle_rad in zip(g1.JOINTS, g1.STAND_JOINT_POS_RAD, strict=True):
+        data.joint(joint.name).qpos[0] = angle_rad
+    mujoco.mj_kinematics(model, data)
+    data.qpos[2] -= min(data.site(name).xpos[2] for name in g1.SOLE_FRAMES)
+    return data.qpos.copy()
+
+
 def build_mujoco_spec(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.MjSpec:
     """Build the editable ``MjSpec`` of the G1 (compile it with ``spec.compile()``)."""
     # Keep the URDF's visual meshes (MuJoCo discards them by default) and strip package:// paths.
@@ -191,8 +210,7 @@ def build_mujoco_spec(cfg: MujocoModelConfig = MujocoModelConfig()) -> mujoco.Mj
     _actuators(spec, cfg)
     _sensors(spec)
     _world(spec, cfg)
-    qpos = pin_to_mj_qpos(build_pinocchio_model().q_stand)
-    key = spec.add_key(name=STAND_KEYFRAME, qpos=qpos.tolist())
+    key = spec.add_key(name=STAND_KEYFRAME, qpos=standing_qpos(spec).tolist())
     if cfg.actuators:
         key.ctrl = g1.STAND_JOINT_POS_RAD.tolist()
     return spec

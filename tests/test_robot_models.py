@@ -152,6 +152,18 @@ def test_inverse_dynamics_and_bias_agree(g1_pin, g1_mj_rigid, rng):
         )
 
 
+def test_standing_keyframe_is_the_pinocchio_stand_pose(g1_pin, g1_mj):
+    """MuJoCo computes the standing pose itself (no Pinocchio at run time): the same q_stand."""
+    from robots.mujoco_model import STAND_KEYFRAME
+
+    key_qpos = g1_mj.key(STAND_KEYFRAME).qpos
+    np.testing.assert_allclose(key_qpos, pin_to_mj_qpos(g1_pin.q_stand), rtol=0, atol=1e-12)
+    data = mujoco.MjData(g1_mj)
+    mujoco.mj_resetDataKeyframe(g1_mj, data, g1_mj.key(STAND_KEYFRAME).id)
+    mujoco.mj_kinematics(g1_mj, data)
+    assert min(data.site(name).xpos[2] for name in g1.SOLE_FRAMES) == pytest.approx(0, abs=1e-12)
+
+
 def test_missing_description_gives_an_actionable_error(monkeypatch, tmp_path):
     monkeypatch.setenv("A2CF_G1_DESCRIPTION_DIR", str(tmp_path))
     with pytest.raises(RobotAssetError, match="A2CF_G1_DESCRIPTION_DIR"):

@@ -109,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
         cfg = config_from_args(TrainConfig, args, task_overrides=overrides)
         get_task(cfg.task).with_overrides(overrides)  # bad names fail before any work
     result = train(cfg)
+    if not result.main_process:
+        return 0  # a torchrun rank > 0: rank 0 reports the run
     m = result.metrics
     print(f"run folder: {result.run_dir}")
     print(f"iterations done: {result.iterations_done}")

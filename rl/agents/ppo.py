@@ -22,7 +22,7 @@ import torch
 from rsl_rl.algorithms import PPO
 from rsl_rl.models import MLPModel
 from rsl_rl.storage import RolloutStorage
-from rsl_rl.utils import resolve_optimizer
+from rsl_rl.utils import reduce_gradients_in_buckets, resolve_optimizer
 from tensordict import TensorDict
 from torch import nn
 
@@ -120,28 +120,42 @@ class A2CFPPO(PPO):
             next_n = self.actor.obs_normalizer(next_clean)
         num_samples = history_n.shape[0]
         sums = {"vae_reconstruction": 0.0, "vae_velocity": 0.0, "vae_kl": 0.0}
-        if num_samples == 0:
+        if num_samples == 0 and not self.is_multi_gpu:
             return sums
+        # num_mini_batches steps per epoch on every rank (the ranks' sample counts differ: episode
+        # ends are skipped), so that the ranks' gradient all-reduces pair up.
         batch_size = max(1, num_samples // self.num_mini_batches)
+        encoder_params = list(self.actor.encoder.parameters())
         num_updates = 0
         for _ in range(self.vae_learning_epochs):
             order = torch.randperm(num_samples, device=history_n.device)
-            for start in range(0, num_samples - batch_size + 1, batch_size):
-                idx = order[start : start + batch_size]
-                parts = self.actor.encoder.loss(
-                    history_n[idx],
-                    next_n[idx],
-                    velocity[idx],
-                    self.vae_kl_weight,
-                    self.vae_velocity_weight,
-                )
+            for step in range(self.num_mini_batches):
+                idx = order[step * batch_size : (step + 1) * batch_size]
                 self.vae_optimizer.zero_grad()
-                parts["total"].backward()
-                nn.utils.clip_grad_norm_(self.actor.encoder.parameters(), self.max_grad_norm)
+                if idx.numel():
+                    parts = self.actor.encoder.loss(
+                        history_n[idx],
+                        next_n[idx],
+                        velocity[idx],
+                        self.vae_kl_weight,
+                        self.vae_velocity_weight,
+                    )
+                    parts["total"].backward()
+                    for key in ("reconstruction", "velocity", "kl"):
+                        sums[f"vae_{key}"] += float(parts[key].detach())
+                    num_updates += 1
+                if self.is_multi_gpu:
+                    # As rsl-rl's reduce_parameters does for the policy: one encoder on all ranks.
+                    for param in encoder_params:
+                        if param.grad is None:
+                            param.grad = torch.zeros_like(param)
+                    reduce_gradients_in_buckets(
+                        encoder_params, self.gpu_world_size, self.grad_reduce_bucket_mb
+                    )
+                elif not idx.numel():
+                    continue
+                nn.utils.clip_grad_norm_(encoder_params, self.max_grad_norm)
                 self.vae_optimizer.step()
-                for key in ("reconstruction", "velocity", "kl"):
-                    sums[f"vae_{key}"] += float(parts[key].detach())
-                num_updates += 1
         # rsl-rl's PPO update clips the gradient norm over *all* actor parameters, the encoder's
         # included: stale VAE gradients left here would shrink the next PPO step (and a resumed
         # run, which starts without them, would diverge from the uninterrupted one).
