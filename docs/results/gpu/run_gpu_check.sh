@@ -7,7 +7,7 @@
 #
 # Needs: the repository's virtual environment (.venv) with the gpu extra
 #   (.venv/bin/pip install -e ".[gpu]"), or WHEELS=/folder/of/wheels for an offline install
-#   (pip download -d wheels -e ".[gpu]" on a machine with an index; warp-lang alone is ~150 MB).
+#   (bash docs/results/gpu/make_wheels.sh WHEELS on a machine with an index: 873 MB, docs/gpu.md).
 # Budget: about 9 minutes wall clock (stage limits below: 150 + 240 + 330 s, plus start-up).
 set -uo pipefail
 cd "$(dirname "$0")/../../.."
