@@ -27,6 +27,7 @@ import io
 import math
 import textwrap
 import tokenize
+import types
 import typing
 from functools import cache
 from typing import Any, TypeVar
@@ -165,7 +166,7 @@ def add_config_arguments(
             continue
         origin = typing.get_origin(kind)
         args = typing.get_args(kind)
-        if origin is typing.Union or str(origin) == "types.UnionType":
+        if origin in (typing.Union, types.UnionType):
             plain = [a for a in args if a is not type(None)]
             if len(plain) != 1:
                 continue

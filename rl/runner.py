@@ -36,7 +36,7 @@ import json
 import random
 import sys
 from collections import deque
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -107,7 +107,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
     actor_groups = ["policy", "history"] + (
         ["privileged"] if mode.assist and mode.assist_privileged else []
     )
-    ppo = asdict(cfg.ppo)
+    ppo = asdict(with_task_discount(cfg).ppo)
     init_noise_std = ppo.pop("init_noise_std")
     assist_init_std = ppo.pop("assist_init_noise_std")
     return {
@@ -414,6 +414,13 @@ def resolve_task(cfg: TrainConfig) -> TaskConfig:
     return get_task(cfg.task).with_overrides(cfg.task_overrides)
 
 
+def with_task_discount(cfg: TrainConfig) -> TrainConfig:
+    """``cfg`` with PPO's discount set: the run's own (``--ppo-gamma``), else its task's."""
+    if cfg.ppo.gamma is not None:
+        return cfg
+    return replace(cfg, ppo=replace(cfg.ppo, gamma=resolve_task(cfg).discount))
+
+
 def build_training(
     cfg: TrainConfig, run_dir: Path, eta0: torch.Tensor | None = None
 ) -> tuple[G1VecEnv, A2CFRunner, dict[str, Any]]:
@@ -494,7 +501,8 @@ def _train_locked(
 ) -> TrainResult:
     """:func:`train` while this process holds the run folder's lock."""
     start = start_point(cfg, run_dir)
-    cfg, checkpoint = start.cfg, start.checkpoint
+    # The run folder's config holds the discount in use, so a resume keeps it.
+    cfg, checkpoint = with_task_discount(start.cfg), start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
         eta0 = torch.tensor(start.saved_eta0)
     seed_everything(rank_seed(cfg.seed))

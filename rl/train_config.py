@@ -23,7 +23,9 @@ class PPOConfig:
     num_learning_epochs: int = 5  # passes over each rollout [-]
     num_mini_batches: int = 4  # mini-batches per pass [-]
     clip_param: float = 0.2  # PPO ratio clip [-]
-    gamma: float = 0.99  # discount per control step [-]
+    gamma: float | None = (
+        None  # discount per control step; None: the task's (TaskConfig.discount) [-]
+    )
     lam: float = 0.95  # GAE lambda [-]
     value_loss_coef: float = 1.0  # weight of the value loss [-]
     entropy_coef: float = 0.005  # weight of the entropy bonus [-]

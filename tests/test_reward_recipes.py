@@ -7,12 +7,16 @@ of a robot that topples in the commanded direction)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
 import torch
 
-from rl.registry import TASKS, make_env
+from rl.agents.modes import get_mode
+from rl.registry import TASKS, get_task, make_env
+from rl.runner import rsl_rl_config
+from rl.train_config import PPOConfig, TrainConfig
 
 PAPER_TABLES_THAT_PAY_FOR_FALLING = {"walk-paper", "dance-paper"}
 """The paper's tables have no survival term; kept as variants, measured to pay for falls."""
@@ -65,3 +69,16 @@ def test_the_paper_tables_pay_for_falling(task: str) -> None:
     """Why the paper's tables are not the defaults: with them, a fall at once earns a positive
     return."""
     assert _fall_at_once_per_s(task) > 0.0
+
+
+def test_ppo_discount_is_the_tasks_unless_the_run_gives_one() -> None:
+    def gamma(cfg: TrainConfig) -> float:
+        return rsl_rl_config(cfg, get_mode("baseline"))["algorithm"]["gamma"]
+
+    assert get_task("stand").discount == 0.995  # the stand recipe (docs/environments.md)
+    for name in ("stand", "walk-flat", "backflip"):
+        assert gamma(TrainConfig(task=name)) == get_task(name).discount
+    assert gamma(TrainConfig(task="walk-flat")) == 0.99  # PPO's default elsewhere
+    assert gamma(TrainConfig(task="stand", ppo=PPOConfig(gamma=0.98))) == 0.98
+    with pytest.raises(ValueError, match="discount must be in"):
+        dataclasses.replace(get_task("stand"), discount=1.5)

@@ -163,12 +163,15 @@ class TaskConfig:
         None  # task-specific eval config (build(env) -> evaluator); None: generic eval
     )
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
+    discount: float = 0.99  # PPO's discount per control step for this task, unless the run gives one (--ppo-gamma) [-]
 
     def __post_init__(self) -> None:
         check_unique("reward", self.rewards)
         check_unique("termination", self.terminations)
         for group in ("policy", "privileged", "critic"):
             check_unique(f"{group} observation", getattr(self.observations, group).terms)
+        if not 0.0 < self.discount <= 1.0:
+            raise ValueError(f"task discount must be in (0, 1], got {self.discount}")
         if self.episode_length_s <= 0:
             raise ValueError(f"task episode_length_s must be > 0 s, got {self.episode_length_s}")
         rows = self.assist_bound

@@ -2,7 +2,8 @@
 
 With the G1 gains a PD hold of the stand pose is an unstable equilibrium
 (:mod:`robots.standing`), so the policy must learn to balance. The episode fails when the pelvis
-drops below 0.45 m or tilts beyond 0.8 rad. Skill progress is the fraction of recent episodes that
+drops below 0.45 m or tilts beyond 0.8 rad. Nothing pays for keeping both feet down, so the
+policy may step to recover from a push. Skill progress is the fraction of recent episodes that
 survived to the time-out, over a target of 0.9. The initial assist bound is the paper's walking row
 (the paper has no standing task; walking is the closest balance skill).
 """
@@ -66,7 +67,6 @@ STAND = TaskConfig(
         RewardTerm("joint_vel", rewards.joint_vel_l2, weight=-1e-3),
         RewardTerm("base_lin_vel", rewards.base_lin_vel_xy_l2, weight=-0.5),
         RewardTerm("base_ang_vel", rewards.base_ang_vel_xy_l2, weight=-0.05),
-        RewardTerm("feet_contact", rewards.feet_contact, weight=0.5, params={"threshold_n": 1.0}),
         # times dt 0.02 s: -1 per fall
         RewardTerm("termination", rewards.termination, weight=-50.0),
     ),
@@ -77,5 +77,9 @@ STAND = TaskConfig(
     assist_bound=paper_bound_rows("walk"),
     phases=SinglePhaseConfig(names=("stand",)),
     skill=SurvivalSkillConfig(target_survival=0.9, window=256),
+    # A 200-step (4 s) horizon instead of PPO's 100; with it and without the former feet_contact
+    # reward (+0.5 while both feet are loaded) every seed reached the target within 3 M env steps
+    # (measured: docs/environments.md, "Recipes that learn").
+    discount=0.995,
 )
 """The stand task."""
