@@ -30,7 +30,8 @@ def sample_mask(
     """Random mask of 0/1 floats, each entry 0 with probability ``drop_prob`` (zeta)."""
     if not 0.0 <= drop_prob <= 1.0:
         raise ValueError(f"Random mask probability zeta must be in [0, 1], got {drop_prob}.")
-    return (torch.rand(shape, generator=generator) >= drop_prob).to(torch.float32)
+    device = generator.device if generator is not None else None  # draw where the stream lives
+    return (torch.rand(shape, generator=generator, device=device) >= drop_prob).to(torch.float32)
 
 
 def assist_wrench(raw: torch.Tensor, bound: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -66,8 +67,9 @@ class AssistState:
         return self.bound.shape[0]
 
     def set_bound(self, bound: torch.Tensor) -> None:
-        """Replace eta; ``bound`` must be (num_phases, 6), finite and non-negative."""
-        bound = torch.as_tensor(bound, dtype=torch.float32)
+        """Replace eta; ``bound`` must be (num_phases, 6), finite and non-negative (it is moved to
+        the device of the first bound)."""
+        bound = torch.as_tensor(bound, dtype=torch.float32, device=self.bound.device)
         if bound.shape != self.bound.shape:
             raise ValueError(
                 f"Assist bound eta must have shape {tuple(self.bound.shape)} (num_phases, 6), "

@@ -384,6 +384,9 @@ class AssistStatistics:
                 f"extras['assist'] must hold applied_wrench (N, 6) and phase (N,), got "
                 f"{tuple(wrench.shape)} and {tuple(phase.shape)}"
             )
+        if self.norm_sum.device != wrench.device:  # once: follow the env's device (no copies)
+            for key in ("norm_sum", "count", "ratio_hist", "axis_abs_sum"):
+                setattr(self, key, getattr(self, key).to(wrench.device))
         norm = torch.linalg.vector_norm(wrench.double(), dim=-1).to(self.norm_sum.device)
         phase = phase.to(self.norm_sum.device)
         self.norm_sum.index_add_(0, phase, norm)
@@ -501,11 +504,11 @@ class CurriculumEvent:
             return None
         sums = _all_reduce_sum(
             torch.cat(
-                [
-                    self.stats.norm_sum,
-                    self.stats.count,
-                    self.stats.ratio_hist.reshape(-1),
-                    self.stats.axis_abs_sum.reshape(-1),
+                [  # on the host, once per rollout (the sums live on the env's device)
+                    self.stats.norm_sum.cpu(),
+                    self.stats.count.cpu(),
+                    self.stats.ratio_hist.reshape(-1).cpu(),
+                    self.stats.axis_abs_sum.reshape(-1).cpu(),
                     torch.tensor(
                         [
                             self.stats.force_sum_n,

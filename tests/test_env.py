@@ -456,3 +456,48 @@ def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
     other.attach_curriculum(CurriculumEvent(AssistCurriculum(eta0, cfg), steps_per_iteration=3))
     other.load_state_dict(state)
     assert other.task_components.alone_skill.window.count == 2
+
+
+def misplaced_tensors(env: G1VecEnv) -> list[str]:
+    """Where a tensor of ``env.env_state``, the observations or a part's ``state_dict`` is not on
+    ``env.device`` (the generator's saved state is a CPU byte tensor on every device: skipped)."""
+    device = torch.device(env.device)
+    found: list[str] = []
+
+    def visit(where: str, value) -> None:
+        if isinstance(value, torch.Tensor):
+            same = value.device.type == device.type
+            if same and device.index is not None:
+                same = value.device.index == device.index
+            if not same:
+                found.append(f"{where} on {value.device}")
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                visit(f"{where}.{key}", item)
+        elif isinstance(value, list | tuple):
+            for i, item in enumerate(value):
+                visit(f"{where}[{i}]", item)
+        elif hasattr(value, "items") and hasattr(value, "batch_size"):  # TensorDict
+            visit(where, value.to_dict())
+
+    visit("env_state", vars(env.env_state))
+    visit("observations", env.get_observations())
+    state = env.state_dict()
+    assert "generator" in state
+    visit("state_dict", {k: v for k, v in state.items() if k != "generator"})
+    return found
+
+
+@pytest.mark.parametrize("task", ["stand", "walk", "backflip"])
+def test_every_tensor_of_the_env_lives_on_its_device(task: str):
+    """The parts build their tensors on ``env.device`` (MuJoCo C: the CPU; the Warp backend's
+    device in ``test_warp_physics``), and the generator draws there."""
+    env = make_env(task, 4, num_threads=1)
+    try:
+        gen = torch.Generator().manual_seed(0)
+        for _ in range(3):
+            env.step(torch.randn(4, env.num_actions, generator=gen))
+        assert env.device == "cpu" and env.generator.device == torch.device("cpu")
+        assert misplaced_tensors(env) == []
+    finally:
+        env.close()

@@ -22,6 +22,7 @@ import sys
 import numpy as np
 import pytest
 import torch
+from test_env import misplaced_tensors
 from test_training import tiny_config
 
 from a2cf_mb.config_cli import add_config_arguments
@@ -55,14 +56,14 @@ def pair(task, num_envs: int) -> tuple[G1VecEnv, G1VecEnv]:
 def align(c: G1VecEnv, warp: G1VecEnv) -> None:
     """Write the Warp env's state into the MuJoCo C env."""
     lay = c.layout
-    c.state[:, lay.qpos] = warp.physics.qpos.double().numpy()
-    c.state[:, lay.qvel] = warp.physics.qvel.double().numpy()
+    c.state[:, lay.qpos] = warp.physics.qpos.double().cpu().numpy()
+    c.state[:, lay.qvel] = warp.physics.qvel.double().cpu().numpy()
 
 
 def max_errors(c: G1VecEnv, warp: G1VecEnv) -> tuple[float, float]:
     """Max |qpos| and |qvel| differences between the backends."""
-    dq = (c.physics.qpos - warp.physics.qpos.double()).abs().max()
-    dv = (c.physics.qvel - warp.physics.qvel.double()).abs().max()
+    dq = (c.physics.qpos - warp.physics.qpos.double().cpu()).abs().max()
+    dv = (c.physics.qvel - warp.physics.qvel.double().cpu()).abs().max()
     return float(dq), float(dv)
 
 
@@ -218,6 +219,53 @@ def test_randomised_worlds_carry_their_own_model_and_derived_fields() -> None:
             )
             assert subtree[i, 0] == pytest.approx(model.body_mass.sum(), rel=1e-5)
         assert len({float(subtree[i, 0]) for i in range(3)}) == 3  # three different payloads
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_the_env_reads_and_writes_the_warp_arrays_themselves() -> None:
+    """No per-step copies: qpos, qvel, sensors, joint targets and the pelvis wrench the env reads
+    and writes are torch views of the worlds' Warp arrays (same memory)."""
+    import warp as wp
+
+    env = make_env(STAND, 2, backend="warp", device=WARP_DEVICE)
+    try:
+        phys, d = env.physics, env.physics.d
+        arrays = {"qpos": d.qpos, "qvel": d.qvel, "ctrl": d.ctrl, "sensordata": d.sensordata}
+        arrays["xfrc_applied"] = d.xfrc_applied
+        views = {"qpos": phys.qpos, "qvel": phys.qvel, **phys._sim}
+        for name, array in arrays.items():
+            assert views[name].data_ptr() == wp.to_torch(array).data_ptr(), name
+        phys.qvel[1, 0] = 0.125  # writing through the view edits the world's array
+        assert float(d.qvel.numpy()[1, 0]) == 0.125
+        targets = torch.full((2, 29), 0.25, device=env.device)
+        wrench = torch.arange(12.0, device=env.device).reshape(2, 6)
+        phys.set_controls(targets, wrench)
+        np.testing.assert_array_equal(d.ctrl.numpy(), targets.cpu().numpy())
+        pelvis = d.xfrc_applied.numpy()[:, env.layout.pelvis_body]
+        np.testing.assert_array_equal(pelvis, wrench.cpu().numpy())
+        env.step(torch.zeros(2, 35, device=env.device))
+        robot = phys.read()  # computed from the arrays after the step
+        np.testing.assert_array_equal(robot["base_pos_w"].cpu().numpy(), d.qpos.numpy()[:, :3])
+        np.testing.assert_array_equal(
+            robot["joint_torque_nm"].cpu().numpy(), d.sensordata.numpy()[:, env.layout.torque]
+        )
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_every_tensor_of_the_warp_env_lives_on_its_device() -> None:
+    env = make_env(STAND, 2, backend="warp", device=WARP_DEVICE)
+    try:
+        assert env.device == WARP_DEVICE
+        assert env.generator.device.type == torch.device(WARP_DEVICE).type
+        for _ in range(2):
+            env.step(torch.randn(2, 35, device=env.device))
+        assert misplaced_tensors(env) == []
     finally:
         env.close()
 

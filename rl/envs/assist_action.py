@@ -42,20 +42,24 @@ class AssistAction:
         phase_names: tuple[str, ...],
         less_assist_weight: float,
         generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
         """Start with eta = ``bound`` (num_phases, 6) [N, Nm], assistance on, the paper's zeta
-        and no less-assist reward (the runner sets its mode's switches)."""
+        and no less-assist reward (the runner sets its mode's switches). Every tensor, eta
+        included, lives on ``device`` (the generator's)."""
+        self.device = device
         self.settings = AssistState(
-            bound,
+            torch.as_tensor(bound).to(device),
             enabled=True,
             mask_prob=DEFAULT_RANDOM_MASK_PROB,
             less_assist_reward=False,
             generator=generator,
         )
         self.phase_names, self.less_assist_weight = phase_names, less_assist_weight
-        self.applied_wrench = torch.zeros(num_envs, WRENCH_DIM)  # F of this step, 0 after a reset
-        self.mask = torch.ones(num_envs, WRENCH_DIM)  # the mask of this step
-        self.alone = torch.zeros(num_envs, dtype=torch.bool)  # envs that never get help
+        # F of this step, 0 after a reset; the mask of this step; envs that never get help
+        self.applied_wrench = torch.zeros(num_envs, WRENCH_DIM, device=device)
+        self.mask = torch.ones(num_envs, WRENCH_DIM, device=device)
+        self.alone = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.curriculum_event: CurriculumEvent | None = None
         self.step_extras: dict[str, torch.Tensor] = {}  # extras["assist"] of the last step
 
@@ -66,7 +70,7 @@ class AssistAction:
 
     def set_bound(self, eta: torch.Tensor) -> None:
         """Set eta (num_phases, 6) [N, Nm], the per-phase, per-axis bound."""
-        self.settings.set_bound(torch.as_tensor(eta).detach().cpu())
+        self.settings.set_bound(torch.as_tensor(eta).detach())  # moved to this part's device
 
     def set_enabled(self, enabled: bool) -> None:
         """Switch the wrench on or off (off: F = 0 whatever the head outputs)."""
@@ -85,7 +89,8 @@ class AssistAction:
         detaches it (the last bounds stay)."""
         self.curriculum_event = event
         share = event.curriculum.cfg.alone_share if event is not None else 0.0
-        self.alone = torch.arange(self.alone.numel()) < round(share * self.alone.numel())
+        num = self.alone.numel()
+        self.alone = torch.arange(num, device=self.device) < round(share * num)
         if event is not None:
             if event.curriculum.num_phases != len(self.phase_names):
                 raise ValueError(
@@ -188,8 +193,8 @@ class AssistAction:
         self.settings.enabled = bool(state["enabled"])
         self.settings.set_mask_prob(state["mask_prob"])
         self.settings.less_assist_reward = bool(state["less_assist_reward"])
-        self.applied_wrench = state["applied_wrench"].clone()
-        self.mask = state["mask"].clone()
+        self.applied_wrench = state["applied_wrench"].to(self.device, copy=True)
+        self.mask = state["mask"].to(self.device, copy=True)
         if state["curriculum_event"] is not None:
             if self.curriculum_event is None:
                 raise ValueError("env checkpoint has a curriculum; attach one before loading")

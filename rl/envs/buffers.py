@@ -8,8 +8,10 @@ import torch
 class HistoryBuffer:
     """The last H observations (N, H, D) of every env, oldest first."""
 
-    def __init__(self, num_envs: int, length: int, dim: int) -> None:
-        self.buffer = torch.zeros(num_envs, length, dim)
+    def __init__(
+        self, num_envs: int, length: int, dim: int, device: torch.device | str = "cpu"
+    ) -> None:
+        self.buffer = torch.zeros(num_envs, length, dim, device=device)
 
     def push(self, obs: torch.Tensor) -> None:
         """Append observations (N, D), dropping the oldest."""

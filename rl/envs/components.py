@@ -98,13 +98,13 @@ class NoCommandConfig:
     dim: int = 0  # command width C (always 0 here) [-]
 
     def build(self, num_envs: int, generator: torch.Generator) -> Command:
-        """The live command generator."""
-        return _NoCommand(num_envs)
+        """The live command generator (on the generator's device)."""
+        return _NoCommand(num_envs, generator.device)
 
 
 class _NoCommand(Command):
-    def __init__(self, num_envs: int) -> None:
-        self._empty = torch.zeros(num_envs, 0)
+    def __init__(self, num_envs: int, device: torch.device | str = "cpu") -> None:
+        self._empty = torch.zeros(num_envs, 0, device=device)
 
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
         return self._empty
@@ -129,12 +129,12 @@ class SinglePhaseConfig:
         """The live phase machine."""
         if len(self.names) != 1:
             raise ValueError(f"SinglePhaseConfig takes exactly one name, got {self.names}")
-        return _SinglePhase(num_envs)
+        return _SinglePhase(num_envs, generator.device)
 
 
 class _SinglePhase(PhaseMachine):
-    def __init__(self, num_envs: int) -> None:
-        self._zeros = torch.zeros(num_envs, dtype=torch.long)
+    def __init__(self, num_envs: int, device: torch.device | str = "cpu") -> None:
+        self._zeros = torch.zeros(num_envs, dtype=torch.long, device=device)
 
     def update(self, state: EnvState) -> torch.Tensor:
         return self._zeros
@@ -142,7 +142,8 @@ class _SinglePhase(PhaseMachine):
 
 # -------------------------------------------------------------------------------- skill measure
 class EpisodeWindow:
-    """The last ``size`` per-episode values (success flags, errors), oldest dropped first."""
+    """The last ``size`` per-episode values (success flags, errors), oldest dropped first. The
+    window lives on the device of the values pushed (the env's), so pushes copy nothing."""
 
     def __init__(self, size: int) -> None:
         self.values = torch.zeros(size)
@@ -150,6 +151,8 @@ class EpisodeWindow:
 
     def push(self, values: torch.Tensor) -> None:
         """Append per-episode values (M,) (only the newest ``size`` are kept)."""
+        if self.values.device != values.device:  # once: follow the env's device
+            self.values = self.values.to(values.device)
         values = values.to(torch.float32)[-self.values.numel() :]
         n = values.numel()
         if n:
@@ -165,7 +168,7 @@ class EpisodeWindow:
         return {"window": self.values.clone(), "count": self.count}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output."""
+        """Restore :meth:`state_dict` output (the next push moves it to the env's device)."""
         self.values = state["window"].clone()
         self.count = int(state["count"])
 

@@ -32,7 +32,7 @@ class EnvConfig:
         200.0  # divergence guard: rows with a larger |qvel| entry are reset [m/s, rad/s]
     )
     backend: str = "mujoco"  # physics: mujoco (MuJoCo C, CPU) or warp (MuJoCo Warp, gpu extra)
-    device: str = "cpu"  # Warp device of the warp backend: cpu, cuda or cuda:N (mujoco: cpu only)
+    device: str = "cpu"  # device of the physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
 
     def __post_init__(self) -> None:
         for name in ("num_envs", "decimation", "history_length"):

@@ -16,15 +16,15 @@ class ContactTimers:
     foot lands after a swing, ``last_air_time_s`` the length of that swing) and the joint
     acceleration (N, 29) [rad/s^2] from the joint rates of two consecutive steps."""
 
-    def __init__(self, num_envs: int, step_dt_s: float) -> None:
-        """All timers at 0, no foot just landed."""
-        self.step_dt_s = step_dt_s
-        self.last_joint_vel = torch.zeros(num_envs, g1.NUM_JOINTS)
-        self.joint_acc = torch.zeros(num_envs, g1.NUM_JOINTS)
-        self.foot_air_time_s = torch.zeros(num_envs, 2)
-        self.foot_contact_time_s = torch.zeros(num_envs, 2)
-        self.foot_last_air_time_s = torch.zeros(num_envs, 2)
-        self.foot_first_contact = torch.zeros(num_envs, 2, dtype=torch.bool)
+    def __init__(self, num_envs: int, step_dt_s: float, device: torch.device | str = "cpu") -> None:
+        """All timers at 0, no foot just landed; every buffer lives on ``device``."""
+        self.step_dt_s, self.device = step_dt_s, device
+        self.last_joint_vel = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
+        self.joint_acc = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
+        self.foot_air_time_s = torch.zeros(num_envs, 2, device=device)
+        self.foot_contact_time_s = torch.zeros(num_envs, 2, device=device)
+        self.foot_last_air_time_s = torch.zeros(num_envs, 2, device=device)
+        self.foot_first_contact = torch.zeros(num_envs, 2, dtype=torch.bool, device=device)
 
     def update(self, joint_vel_rps: torch.Tensor, foot_force_n: torch.Tensor) -> None:
         """Advance one policy step from the new joint rates (N, 29) [rad/s] (kept: pass a tensor
@@ -71,6 +71,6 @@ class ContactTimers:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output."""
+        """Restore :meth:`state_dict` output (onto this part's device)."""
         for name, value in state.items():
-            setattr(self, name, value.clone())
+            setattr(self, name, value.to(self.device, copy=True))

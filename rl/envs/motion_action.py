@@ -14,12 +14,13 @@ class MotionAction:
     """actions[:, :29] = a (N, 29) [-]: joint PD targets ``stand + ACTION_SCALE_RAD * a`` [rad];
     the action of this step and of the previous one (what observations and rewards read)."""
 
-    def __init__(self, num_envs: int) -> None:
-        """Both actions start at 0 (the standing pose)."""
-        self.stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
-        self.scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32)
-        self.action = torch.zeros(num_envs, g1.NUM_JOINTS)
-        self.last_action = torch.zeros(num_envs, g1.NUM_JOINTS)
+    def __init__(self, num_envs: int, device: torch.device | str = "cpu") -> None:
+        """Both actions start at 0 (the standing pose); every tensor lives on ``device``."""
+        self.device = device
+        self.stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32, device=device)
+        self.scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32, device=device)
+        self.action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
+        self.last_action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
 
     def apply(self, action: torch.Tensor) -> torch.Tensor:
         """Take this step's action (N, 29); returns the PD targets (N, 29) [rad]."""
@@ -44,6 +45,6 @@ class MotionAction:
         return {"action": self.action.clone(), "last_action": self.last_action.clone()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore both actions."""
-        self.action = state["action"].clone()
-        self.last_action = state["last_action"].clone()
+        """Restore both actions (onto this part's device)."""
+        self.action = state["action"].to(self.device, copy=True)
+        self.last_action = state["last_action"].to(self.device, copy=True)

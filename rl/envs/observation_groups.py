@@ -31,10 +31,12 @@ class ObservationGroups:
         history_length: int,
         noise: bool,
         generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
-        """``noise``: the env's switch (off: every group is clean)."""
+        """``noise``: the env's switch (off: every group is clean). History, noise and the groups
+        live on ``device`` (the generator's)."""
         self.cfg, self.num_envs, self.history_length = cfg, num_envs, history_length
-        self.noise, self.generator = noise, generator
+        self.noise, self.generator, self.device = noise, generator, device
         self.history: HistoryBuffer | None = None  # sized by the first policy row
         self.obs: TensorDict | None = None
         self._noise_scale: dict[str, torch.Tensor] = {}
@@ -46,7 +48,9 @@ class ObservationGroups:
         clean, noisy = self._group("policy", self.cfg.policy, s, cache)
         push = stepped or self.history is None
         if self.history is None:
-            self.history = HistoryBuffer(self.num_envs, self.history_length, clean.shape[1])
+            self.history = HistoryBuffer(
+                self.num_envs, self.history_length, clean.shape[1], self.device
+            )
         if push:
             self.history.push(noisy)
         if reset_ids.numel():
@@ -80,12 +84,12 @@ class ObservationGroups:
         if not group.noisy:
             return clean, clean
         if name not in self._noise_scale:
-            widths = torch.tensor([p.shape[1] for p in parts])
+            widths = torch.tensor([p.shape[1] for p in parts], device=self.device)
             amplitude = [term.noise if self.noise else 0.0 for term in group.terms]
             self._noise_scale[name] = torch.repeat_interleave(
-                torch.tensor(amplitude, dtype=torch.float32), widths
+                torch.tensor(amplitude, dtype=torch.float32, device=self.device), widths
             )
-        noise = 2 * torch.rand(clean.shape, generator=self.generator) - 1
+        noise = 2 * torch.rand(clean.shape, generator=self.generator, device=self.device) - 1
         return clean, clean + noise * self._noise_scale[name]
 
     def layout(self, s: EnvState) -> dict[str, list[tuple[str, int, int]]]:
@@ -114,6 +118,7 @@ class ObservationGroups:
         return {"history": self.history.buffer.clone(), "obs": self.obs.clone()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output (after the env's first observation)."""
-        self.history.buffer = state["history"].clone()
-        self.obs = state["obs"].clone()
+        """Restore :meth:`state_dict` output (after the env's first observation), onto this
+        part's device."""
+        self.history.buffer = state["history"].to(self.device, copy=True)
+        self.obs = state["obs"].to(self.device).clone()

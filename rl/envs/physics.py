@@ -29,8 +29,9 @@ class Physics(Protocol):
     """N G1 robots stepped together; every tensor has a leading env axis N.
 
     ``qpos`` (N, 36) [p_w, quat_w wxyz, 29 joints] and ``qvel`` (N, 35) [v_w, omega_b, 29 joint
-    rates] are views of the simulator's state (float64 on MuJoCo C, float32 on Warp), on the CPU:
-    writing into them edits the next step's start (pushes, tests). ``models[i]`` is the model env ``i`` steps with (the randomiser's copies,
+    rates] are views of the simulator's state (float64 on MuJoCo C, on the CPU; float32 on Warp,
+    on Warp's device, which is the env's): writing into them edits the next step's start (pushes,
+    tests). ``models[i]`` is the model env ``i`` steps with (the randomiser's copies,
     possibly shared between envs).
     """
 

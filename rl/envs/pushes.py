@@ -16,11 +16,17 @@ class Pushes:
     at most ``velocity_xy_mps`` per axis and a new interval from ``interval_range_s``."""
 
     def __init__(
-        self, cfg: PushConfig, num_envs: int, step_dt_s: float, generator: torch.Generator
+        self,
+        cfg: PushConfig,
+        num_envs: int,
+        step_dt_s: float,
+        generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
-        """Timers start at 0; :meth:`reset` draws them."""
-        self.cfg, self.step_dt_s, self.generator = cfg, step_dt_s, generator
-        self.timer_s = torch.zeros(num_envs)
+        """Timers start at 0; :meth:`reset` draws them. Tensors and draws live on ``device``
+        (the generator's)."""
+        self.cfg, self.step_dt_s, self.generator, self.device = cfg, step_dt_s, generator, device
+        self.timer_s = torch.zeros(num_envs, device=device)
 
     def apply(self, physics: Physics) -> None:
         """Count one policy step down and kick the envs whose timer ran out (before the physics)."""
@@ -31,7 +37,9 @@ class Pushes:
         if ids.numel() == 0:
             return
         vmax = self.cfg.velocity_xy_mps
-        kick = (2 * torch.rand(ids.numel(), 2, generator=self.generator) - 1) * vmax
+        kick = (
+            2 * torch.rand(ids.numel(), 2, generator=self.generator, device=self.device) - 1
+        ) * vmax
         physics.qvel[ids, 0:2] += kick.double()
         self.timer_s[ids] = self._interval(ids.numel())
 
@@ -42,7 +50,7 @@ class Pushes:
 
     def _interval(self, num: int) -> torch.Tensor:
         low, high = self.cfg.interval_range_s
-        return low + (high - low) * torch.rand(num, generator=self.generator)
+        return low + (high - low) * torch.rand(num, generator=self.generator, device=self.device)
 
     def state_dict(self) -> dict[str, Any]:
         """The timers."""
@@ -50,4 +58,4 @@ class Pushes:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the timers."""
-        self.timer_s = state["timer_s"].clone()
+        self.timer_s = state["timer_s"].to(self.device, copy=True)

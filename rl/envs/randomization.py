@@ -4,6 +4,9 @@
 Parameters are resampled for an env whenever it resets (or drawn once per shared copy, see
 ``RandomizationConfig.model_groups``); they are reported in the privileged observations in the
 order of :data:`PARAM_NAMES`. Pushes are :mod:`rl.envs.pushes`.
+
+The parameter rows live on the env's device; writing them into the ``MjModel`` copies (host
+memory) copies the drawn rows to the host, at resets only (never in a step).
 """
 
 from __future__ import annotations
@@ -28,22 +31,28 @@ MODEL_FIELDS = ("geom_friction", "body_mass", "body_inertia", "body_ipos")
 """The ``MjModel`` fields :meth:`ModelRandomizer.apply` writes (a batched backend copies these)."""
 
 
-def nominal_params(num_envs: int, model: mujoco.MjModel) -> torch.Tensor:
+def nominal_params(
+    num_envs: int, model: mujoco.MjModel, device: torch.device | str = "cpu"
+) -> torch.Tensor:
     """Parameters (N, 5) of the unrandomised model: its sole friction, no payload, no CoM offset."""
-    params = torch.zeros(num_envs, NUM_PARAMS)
+    params = torch.zeros(num_envs, NUM_PARAMS, device=device)
     params[:, 0] = float(model.geom_friction[model.geom(f"{g1.SOLE_FRAMES[0]}_0").id, 0])
     return params
 
 
 def sample_params(num: int, cfg: RandomizationConfig, generator: torch.Generator) -> torch.Tensor:
-    """Draw ``num`` parameter rows (num, 5) uniformly from the ranges of ``cfg``."""
+    """Draw ``num`` parameter rows (num, 5) uniformly from the ranges of ``cfg`` (on the
+    generator's device)."""
+    dev = generator.device
     low = torch.tensor(
-        [cfg.friction_range[0], cfg.payload_mass_range_kg[0]] + [cfg.com_offset_range_m[0]] * 3
+        [cfg.friction_range[0], cfg.payload_mass_range_kg[0]] + [cfg.com_offset_range_m[0]] * 3,
+        device=dev,
     )
     high = torch.tensor(
-        [cfg.friction_range[1], cfg.payload_mass_range_kg[1]] + [cfg.com_offset_range_m[1]] * 3
+        [cfg.friction_range[1], cfg.payload_mass_range_kg[1]] + [cfg.com_offset_range_m[1]] * 3,
+        device=dev,
     )
-    return low + (high - low) * torch.rand(num, NUM_PARAMS, generator=generator)
+    return low + (high - low) * torch.rand(num, NUM_PARAMS, generator=generator, device=dev)
 
 
 @dataclass(frozen=True)
@@ -118,9 +127,11 @@ class Randomizer:
         model: mujoco.MjModel,
         num_envs: int,
         generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
-        """Copies of ``model`` for ``num_envs`` envs; group copies are drawn here."""
-        self.cfg, self.generator = cfg, generator
+        """Copies of ``model`` for ``num_envs`` envs; group copies are drawn here. The parameter
+        rows live on ``device`` (the generator's)."""
+        self.cfg, self.generator, self.device = cfg, generator, device
         self.writer = ModelRandomizer.for_model(model, cfg.payload_body)
         if cfg.enabled:
             self.writer.check_payload_range(cfg.payload_mass_range_kg)
@@ -128,12 +139,13 @@ class Randomizer:
         count = num_envs if cfg.model_groups == 0 else min(cfg.model_groups, num_envs)
         self.model_copies = [copy.copy(model) for _ in range(count)] if cfg.enabled else [model]
         self.models = [self.model_copies[i % len(self.model_copies)] for i in range(num_envs)]
-        self.params = nominal_params(num_envs, model)
+        self.params = nominal_params(num_envs, model, device)
         if cfg.enabled and not self.per_env:
             groups = sample_params(count, cfg, generator)
-            for model_copy, row in zip(self.model_copies, groups.double().numpy(), strict=True):
+            rows = groups.double().cpu().numpy()  # to the host MjModel copies, once
+            for model_copy, row in zip(self.model_copies, rows, strict=True):
                 self.writer.apply(model_copy, row)
-            self.params = groups[torch.arange(num_envs) % count].clone()
+            self.params = groups[torch.arange(num_envs, device=device) % count].clone()
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """Per-env copies: draw and write fresh parameters for ``env_ids`` (M,)."""
@@ -141,7 +153,8 @@ class Randomizer:
             return
         params = sample_params(env_ids.numel(), self.cfg, self.generator)
         self.params[env_ids] = params
-        for i, row in zip(env_ids.tolist(), params.double().numpy(), strict=True):
+        rows = params.double().cpu().numpy()  # to the host MjModel copies: a reset-time copy
+        for i, row in zip(env_ids.tolist(), rows, strict=True):
             self.writer.apply(self.models[i], row)
 
     def state_dict(self) -> dict[str, Any]:
@@ -149,9 +162,9 @@ class Randomizer:
         return {"params": self.params.clone()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the rows and write them into the copies."""
-        self.params = state["params"].clone()
+        """Restore the rows (onto this part's device) and write them into the copies."""
+        self.params = state["params"].to(self.device, copy=True)
         if self.cfg.enabled:
-            rows = self.params.double().numpy()
+            rows = self.params.double().cpu().numpy()
             for i, model_copy in enumerate(self.model_copies):
                 self.writer.apply(model_copy, rows[i])

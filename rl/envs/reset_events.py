@@ -29,33 +29,34 @@ class ResetEvents:
         num_envs: int,
         max_episode_length: int,
         generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
-        """Counters at 0; episodes time out after ``max_episode_length`` policy steps."""
-        self.cfg, self.generator = cfg, generator
+        """Counters at 0; episodes time out after ``max_episode_length`` policy steps. Counters
+        and draws live on ``device`` (the generator's)."""
+        self.cfg, self.generator, self.device = cfg, generator, device
         self.max_episode_length = max_episode_length
-        self.episode_length_buf = torch.zeros(num_envs, dtype=torch.long)
-        self.lived_steps = torch.zeros(num_envs, dtype=torch.long)
+        self.episode_length_buf = torch.zeros(num_envs, dtype=torch.long, device=device)
+        self.lived_steps = torch.zeros(num_envs, dtype=torch.long, device=device)
 
     def initial_state(
         self, env_ids: torch.Tensor, physics: Physics, components: Iterable[Component]
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Draw the start of ``env_ids`` (M,): joint noise, heading and base velocity around the
         keyframe, then the task's hook and its components' ``reset_state`` edit it in place.
-        Returns float64 ``qpos`` (M, 36) and ``qvel`` (M, 35)."""
-        init, gen, m = self.cfg, self.generator, env_ids.numel()
-        qpos = physics.stand_qpos.repeat(m, 1)
-        qvel = physics.stand_qvel.repeat(m, 1)
-        joint_noise = (2 * torch.rand(m, g1.NUM_JOINTS, generator=gen) - 1) * (
+        Returns float64 ``qpos`` (M, 36) and ``qvel`` (M, 35) on this part's device."""
+        init, gen, m, dev = self.cfg, self.generator, env_ids.numel(), self.device
+        qpos = physics.stand_qpos.to(dev).repeat(m, 1)
+        qvel = physics.stand_qvel.to(dev).repeat(m, 1)
+        joint_noise = (2 * torch.rand(m, g1.NUM_JOINTS, generator=gen, device=dev) - 1) * (
             init.joint_pos_noise_rad
         )
         qpos[:, 7 : 7 + g1.NUM_JOINTS] += joint_noise.double()
         if init.random_yaw:
-            yaw = (2 * torch.rand(m, generator=gen) - 1) * math.pi
-            yaw_quat = torch.stack(
-                [torch.cos(yaw / 2), torch.zeros(m), torch.zeros(m), torch.sin(yaw / 2)], dim=-1
-            )
+            yaw = (2 * torch.rand(m, generator=gen, device=dev) - 1) * math.pi
+            zero = torch.zeros(m, device=dev)
+            yaw_quat = torch.stack([torch.cos(yaw / 2), zero, zero, torch.sin(yaw / 2)], dim=-1)
             qpos[:, 3:7] = quat_multiply(yaw_quat.double(), qpos[:, 3:7])
-        base_vel = (2 * torch.rand(m, 6, generator=gen) - 1) * init.base_vel_noise
+        base_vel = (2 * torch.rand(m, 6, generator=gen, device=dev) - 1) * init.base_vel_noise
         qvel[:, 0:6] = base_vel.double()
         if init.reset_state is not None:
             init.reset_state(env_ids, qpos, qvel, gen)
@@ -85,6 +86,6 @@ class ResetEvents:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the counters."""
-        self.episode_length_buf = state["episode_length_buf"].clone()
-        self.lived_steps = state["lived_steps"].clone()
+        """Restore the counters (onto this part's device)."""
+        self.episode_length_buf = state["episode_length_buf"].to(self.device, copy=True)
+        self.lived_steps = state["lived_steps"].to(self.device, copy=True)

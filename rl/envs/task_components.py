@@ -19,18 +19,25 @@ class TaskComponents:
     the last :meth:`update` gave (zeros before the first)."""
 
     def __init__(
-        self, task: TaskConfig, num_envs: int, max_episode_length: int, generator: torch.Generator
+        self,
+        task: TaskConfig,
+        num_envs: int,
+        max_episode_length: int,
+        generator: torch.Generator,
+        device: torch.device | str = "cpu",
     ) -> None:
-        """Build the three components (they share the env's ``generator``)."""
+        """Build the three components (they share the env's ``generator`` and build their
+        tensors on its device, which is ``device``)."""
+        self.device = device
         self.command_gen = task.commands.build(num_envs, generator)
-        self.command = torch.zeros(num_envs, task.commands.dim)
+        self.command = torch.zeros(num_envs, task.commands.dim, device=device)
         self.phase_machine = task.phases.build(num_envs, generator)
         self.skill = task.skill.build(max_episode_length)
         self.alone_skill: SkillMeasure | None = (
             None  # the alone envs' measure (:meth:`track_alone`)
         )
         self._skill_cfg, self._max_episode_length = task.skill, max_episode_length
-        self.phase = torch.zeros(num_envs, dtype=torch.long)
+        self.phase = torch.zeros(num_envs, dtype=torch.long, device=device)
         self.all = (self.command_gen, self.phase_machine, self.skill)
 
     def track_alone(self, window: int | None) -> None:
@@ -92,7 +99,8 @@ class TaskComponents:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` output."""
-        self.phase, self.command = state["phase"].clone(), state["command"].clone()
+        self.phase = state["phase"].to(self.device, copy=True)
+        self.command = state["command"].to(self.device, copy=True)
         self.command_gen.load_state_dict(state["command_gen"])
         self.phase_machine.load_state_dict(state["phase_machine"])
         self.skill.load_state_dict(state["skill"])

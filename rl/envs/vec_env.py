@@ -55,16 +55,20 @@ class G1VecEnv(VecEnv):
     def __init__(
         self, cfg: EnvConfig, task: TaskConfig, model_cfg: MujocoModelConfig = MujocoModelConfig()
     ) -> None:
-        self.cfg, self.task, self.device = cfg, task, "cpu"
+        # The physics' torch device (EnvConfig checks that MuJoCo C runs with "cpu"): every part
+        # builds its tensors there and draws from one generator there, so a step on a GPU makes
+        # no host <-> device copies of the robot's state (docs/gpu.md).
+        self.cfg, self.task, self.device = cfg, task, cfg.device
+        dev = self.device
         self.num_envs = n = cfg.num_envs
         self.num_actions = g1.NUM_JOINTS + WRENCH_DIM
         self.num_phases, self.phase_names = task.num_phases, task.phase_names
-        self.generator = gen = torch.Generator().manual_seed(cfg.seed)
+        self.generator = gen = torch.Generator(device=dev).manual_seed(cfg.seed)
         model_cfg = MujocoModelConfig(**{**model_cfg.__dict__, "floor": task.scene.floor})
         self.model = build_physics_model(model_cfg, task.scene.link_collisions, task.scene.terrain)
         self.total_mass_kg = float(self.model.body_subtreemass[0])
         self.weight_n = self.total_mass_kg * GRAVITY_MPS2
-        self.randomizer = Randomizer(task.randomization, self.model, n, gen)
+        self.randomizer = Randomizer(task.randomization, self.model, n, gen, dev)
         if cfg.backend == "warp":
             from rl.envs.warp_physics import WarpPhysics  # the gpu extra, imported where used
 
@@ -79,26 +83,26 @@ class G1VecEnv(VecEnv):
         self.layout, self.physics_dt_s = self.physics.layout, self.physics.physics_dt_s
         self.step_dt_s = dt = self.physics_dt_s * cfg.decimation
         self.max_episode_length = math.ceil(task.episode_length_s / dt)
-        self.resets = ResetEvents(task.initial_state, n, self.max_episode_length, gen)
-        self.pushes = Pushes(task.pushes, n, dt, gen)
-        self.contacts = ContactTimers(n, dt)
+        self.resets = ResetEvents(task.initial_state, n, self.max_episode_length, gen, dev)
+        self.pushes = Pushes(task.pushes, n, dt, gen, dev)
+        self.contacts = ContactTimers(n, dt, dev)
         self.observations = ObservationGroups(
-            task.observations, n, cfg.history_length, cfg.noise, gen
+            task.observations, n, cfg.history_length, cfg.noise, gen, dev
         )
         self.assist = AssistAction(
-            task.default_assist_bound(), n, task.phase_names, task.less_assist_weight, gen
+            task.default_assist_bound(), n, task.phase_names, task.less_assist_weight, gen, dev
         )
-        self.motion = MotionAction(n)
+        self.motion = MotionAction(n, dev)
         self._constants = {  # the EnvState fields that never change
             "num_phases": self.num_phases,
             "default_joint_pos_rad": self.motion.stand_rad,
-            "effort_limit_nm": torch.as_tensor(g1.EFFORT_LIMIT_NM, dtype=torch.float32),
+            "effort_limit_nm": torch.as_tensor(g1.EFFORT_LIMIT_NM, dtype=torch.float32, device=dev),
             "weight_n": self.weight_n,
             "step_dt_s": dt,
-            "joint_pos_limits_rad": torch.as_tensor(self.layout.joint_range_rad).float(),
+            "joint_pos_limits_rad": torch.as_tensor(self.layout.joint_range_rad).float().to(dev),
         }
-        self.task_components = TaskComponents(task, n, self.max_episode_length, gen)
-        self.reset_envs(torch.arange(n))
+        self.task_components = TaskComponents(task, n, self.max_episode_length, gen, dev)
+        self.reset_envs(torch.arange(n, device=dev))
 
     # ---------------------------------------------------------------- what other code reads
     state = property(lambda self: self.physics.state, doc="(N, nstate) MuJoCo state rows.")
@@ -164,7 +168,7 @@ class G1VecEnv(VecEnv):
         """Start new episodes for ``env_ids`` (M,) now: the task's initial-state distribution,
         fresh randomisation, components reset; the observations are rebuilt and returned. Other
         envs keep their state and history (their observations get fresh noise)."""
-        env_ids = torch.as_tensor(env_ids, dtype=torch.long)
+        env_ids = torch.as_tensor(env_ids, dtype=torch.long, device=self.device)
         self._reset(env_ids)
         self.env_state = self._read_state()
         self.task_components.update(self.env_state, 0.0)
@@ -258,7 +262,7 @@ class G1VecEnv(VecEnv):
                 f"G1VecEnv.step expects actions of shape ({n}, {self.num_actions}) = (num_envs, "
                 f"29 joint + 6 assist), got {tuple(actions.shape)}."
             )
-        actions = actions.detach().to("cpu", torch.float32)
+        actions = actions.detach().to(self.device, torch.float32)
         nonfinite = int((~torch.isfinite(actions).all(dim=-1)).sum())
         if nonfinite:
             actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
@@ -296,7 +300,7 @@ class G1VecEnv(VecEnv):
         """Batch state as float32 tensors: the physics' reading (``robot``, read now if None)
         and the env's own buffers."""
         if terminated is None:
-            terminated = torch.zeros(self.num_envs, dtype=torch.bool)
+            terminated = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
         return EnvState(
             **(robot if robot is not None else self.physics.read()),
             **self.contacts.fields(),

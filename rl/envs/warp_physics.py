@@ -3,10 +3,13 @@ extra), on Warp's CPU device or on a CUDA GPU.
 
 One ``mjw.Data`` holds every env as a world; a policy step is ``decimation`` calls of ``mjw.step``
 (captured once in a CUDA graph on a GPU). Warp computes in float32, so ``qpos``/``qvel`` are
-float32 here (float64 on MuJoCo C). The env's own tensors live on the CPU: on Warp's CPU device
-the tensors handed to the env are ``wp.to_torch`` views of the worlds' arrays (no copies); on a
-GPU they are CPU mirrors copied at the step boundary (about 1 KB per env and step; moving the
-env's parts onto the device is what removes them, see ``docs/gpu.md``).
+float32 here (float64 on MuJoCo C). The tensors handed to the env (``qpos``, ``qvel``, the
+readings of :meth:`WarpPhysics.read`) are ``wp.to_torch`` views of the worlds' arrays, and the
+joint targets and the pelvis wrench are written into such views: on Warp's CPU device and on a
+GPU alike, a step copies nothing between host and device (the env's parts live on the same
+device, see ``docs/gpu.md``). What goes through host memory, at resets only: the randomised
+``MjModel`` rows (copied into the per-world model arrays) and the env ids of the model rows to
+copy.
 
 Domain randomisation: the :class:`rl.envs.randomization.Randomizer` still writes its ``MjModel``
 copies; the fields it writes (:data:`rl.envs.randomization.MODEL_FIELDS`) are made per world
@@ -72,7 +75,7 @@ class WarpPhysics:
     """:class:`rl.envs.physics.Physics` on MuJoCo Warp: N worlds of one ``mjw.Data``.
 
     ``device`` is Warp's device (``"cpu"``, ``"cuda"``, ``"cuda:0"``); the tensors the env sees are
-    on the CPU either way (views on Warp's CPU device, mirrors on a GPU).
+    views of the worlds' arrays on that device (``torch_device``), never copies.
     """
 
     def __init__(
@@ -107,7 +110,11 @@ class WarpPhysics:
                 model, nworld=n, nconmax=NCONMAX_PER_WORLD, njmax=NJMAX_PER_WORLD
             )
         d = self.d
-        self._sim = {  # torch views of the worlds' arrays (on Warp's device)
+        # The env's tensors live on the torch device of Warp's. Ordering between torch's work and
+        # Warp's launches on a GPU: Warp's streams are blocking streams, which the legacy default
+        # stream torch uses synchronises with, so no explicit events are needed.
+        self.torch_device = wp.device_to_torch(self.device)
+        self._sim = {  # torch views of the worlds' arrays (on Warp's device): what the env reads
             "qpos": wp.to_torch(d.qpos),
             "qvel": wp.to_torch(d.qvel),
             "ctrl": wp.to_torch(d.ctrl),
@@ -118,13 +125,12 @@ class WarpPhysics:
         self._warmstart = wp.to_torch(d.qacc_warmstart)
         self._overflow = wp.to_torch(d.overflow)
         self._fatal = _fatal_overflow(mjw)
-        on_cpu = self.device.is_cpu
-        # what the env reads and writes: the views themselves, or CPU mirrors on a GPU
-        self._host = {k: (v if on_cpu else v.cpu()) for k, v in self._sim.items()}
-        self.qpos, self.qvel = self._host["qpos"], self._host["qvel"]
-        self.stand_qpos = torch.as_tensor(lay.stand_state[lay.qpos], dtype=torch.float64)
-        self.stand_qvel = torch.as_tensor(lay.stand_state[lay.qvel], dtype=torch.float64)
-        self._stand_ctrl = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32)
+        self.qpos, self.qvel = self._sim["qpos"], self._sim["qvel"]
+        dev = self.torch_device
+        stand = torch.as_tensor(lay.stand_state, dtype=torch.float64)
+        self.stand_qpos = stand[lay.qpos].to(dev)
+        self.stand_qvel = stand[lay.qvel].to(dev)
+        self._stand_ctrl = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32, device=dev)
         self._model_views = {
             f: wp.to_torch(getattr(self.m, f)) for f in MODEL_FIELDS if k > 1
         }  # (G, ...) per-world model fields
@@ -133,51 +139,36 @@ class WarpPhysics:
         self._graph_ready = False
         self.diverged_total = 0
 
-    # ---------------------------------------------------------------- host <-> device
-    def _push(self, *names: str) -> None:
-        """Copy CPU mirrors to the device (nothing to do on Warp's CPU device)."""
-        if not self.device.is_cpu:
-            for name in names:
-                self._sim[name].copy_(self._host[name])
-
-    def _pull(self, *names: str) -> None:
-        """Copy device arrays to the CPU mirrors (nothing to do on Warp's CPU device)."""
-        if not self.device.is_cpu:
-            for name in names:
-                self._host[name].copy_(self._sim[name])
-
     # ---------------------------------------------------------------- Physics
     def set_controls(self, joint_targets_rad: torch.Tensor, wrench_w: torch.Tensor) -> None:
         """Hold the joint targets (N, 29) [rad] and the pelvis ``xfrc_applied`` (N, 6) (world-frame
-        force [N] and torque [Nm] at the pelvis CoM, as MuJoCo C takes it) over the next step."""
-        self._host["ctrl"][:] = joint_targets_rad
-        self._host["xfrc_applied"][:, self.layout.pelvis_body] = wrench_w
+        force [N] and torque [Nm] at the pelvis CoM, as MuJoCo C takes it) over the next step.
+        Both are tensors on :attr:`torch_device`, written into the worlds' arrays there."""
+        self._sim["ctrl"][:] = joint_targets_rad
+        self._sim["xfrc_applied"][:, self.layout.pelvis_body] = wrench_w
 
     def step(self) -> torch.Tensor:
         """``decimation`` physics steps of every world; returns (N,) bool, the worlds that were
         non-finite before, went non-finite, exceeded ``max_abs_qvel`` or overflowed a buffer:
         they are counted and hold the standing keyframe until the env resets them."""
-        qpos, qvel = self._host["qpos"], self._host["qvel"]
+        qpos, qvel = self.qpos, self.qvel
         bad_in = ~(torch.isfinite(qpos).all(dim=1) & torch.isfinite(qvel).all(dim=1))
         if bad_in.any():
             self._stand_rows(bad_in.nonzero().flatten())
-        self._push("qpos", "qvel", "ctrl", "xfrc_applied")
         if self._models_dirty:
             self._sync_models(range(len(self.copies)))
         self._advance()
-        self._pull("qpos", "qvel", "sensordata")
-        sens = self._host["sensordata"]
+        sens = self._sim["sensordata"]
         finite = torch.isfinite(qpos).all(dim=1) & torch.isfinite(qvel).all(dim=1)
         finite &= torch.isfinite(sens).all(dim=1)
         calm = torch.nan_to_num(qvel, nan=torch.inf).abs().amax(dim=1) < self.max_abs_qvel
-        overflow = (self._overflow & self._fatal).cpu() != 0
+        overflow = (self._overflow & self._fatal) != 0
         diverged = bad_in | ~finite | ~calm | overflow
-        num_diverged = int(diverged.sum())
+        num_diverged = int(diverged.sum())  # one scalar to the host
         if num_diverged:
             rows = diverged.nonzero().flatten()
             self._stand_rows(rows)
             sens[rows] = 0.0
-            self._push("qpos", "qvel", "sensordata")
             self.diverged_total += num_diverged
         return diverged
 
@@ -199,23 +190,24 @@ class WarpPhysics:
 
     def _stand_rows(self, rows: torch.Tensor) -> None:
         """Put worlds ``rows`` (M,) at the standing keyframe, time 0, no warm start, no overflow
-        (the placeholder until the env resets them; the caller pushes qpos/qvel)."""
-        self._host["qpos"][rows] = self.stand_qpos.float()
-        self._host["qvel"][rows] = self.stand_qvel.float()
-        sim_rows = rows.to(self._time.device)
-        self._time[sim_rows] = 0.0
-        self._warmstart[sim_rows] = 0.0
-        self._overflow[sim_rows] = 0
+        (the placeholder until the env resets them)."""
+        rows = rows.to(self.torch_device)
+        self.qpos[rows] = self.stand_qpos.float()
+        self.qvel[rows] = self.stand_qvel.float()
+        self._time[rows] = 0.0
+        self._warmstart[rows] = 0.0
+        self._overflow[rows] = 0
 
     def reset_rows(self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
         """Start worlds ``env_ids`` (M,) from ``qpos`` (M, 36), ``qvel`` (M, 35) at time 0 with
-        their (re)randomised model rows; sensors recomputed at the stand targets, no wrench."""
+        their (re)randomised model rows; sensors recomputed at the stand targets, no wrench.
+        The randomised model rows come from the host ``MjModel`` copies (a reset-time copy)."""
+        env_ids = env_ids.to(self.torch_device)
         self._stand_rows(env_ids)
-        self._host["qpos"][env_ids] = qpos.float()
-        self._host["qvel"][env_ids] = qvel.float()
-        self._host["ctrl"][env_ids] = self._stand_ctrl
-        self._host["xfrc_applied"][env_ids] = 0.0
-        self._push("qpos", "qvel", "ctrl", "xfrc_applied")
+        self.qpos[env_ids] = qpos.to(self.torch_device, torch.float32)
+        self.qvel[env_ids] = qvel.to(self.torch_device, torch.float32)
+        self._sim["ctrl"][env_ids] = self._stand_ctrl
+        self._sim["xfrc_applied"][env_ids] = 0.0
         if len(self.copies) > 1:
             self._sync_models(sorted({i % len(self.copies) for i in env_ids.tolist()}))
         self.refresh_sensors(env_ids)
@@ -227,14 +219,14 @@ class WarpPhysics:
         keep = sens.clone()
         with self._wp.ScopedDevice(self.device):
             self._mjw.forward(self.m, self.d)
-        others = torch.ones(self.num_envs, dtype=torch.bool)
-        others[env_ids] = False
-        sens[others.to(sens.device)] = keep[others.to(sens.device)]
-        self._pull("sensordata")
+        others = torch.ones(self.num_envs, dtype=torch.bool, device=sens.device)
+        others[env_ids.to(sens.device)] = False
+        sens[others] = keep[others]
 
     def _sync_models(self, rows) -> None:
         """Copy the randomised fields of model copies ``rows`` into their world rows and recompute
-        the derived fields (``mjw.set_const``: masses, CoM, inverse weights of every row)."""
+        the derived fields (``mjw.set_const``: masses, CoM, inverse weights of every row). The
+        values come from the host ``MjModel`` copies: a host-to-device copy, at resets only."""
         rows = list(rows)
         for field, view in self._model_views.items():
             values = np.stack([getattr(self.copies[r], field) for r in rows])
@@ -244,9 +236,9 @@ class WarpPhysics:
         self._models_dirty = False
 
     def read(self) -> dict[str, Any]:
-        """The robot fields of :class:`rl.envs.state.EnvState` (float32 CPU tensors, copies)."""
-        h = self._host
-        return robot_fields(self.layout, h["qpos"], h["qvel"], h["sensordata"])
+        """The robot fields of :class:`rl.envs.state.EnvState`: float32 tensors on
+        :attr:`torch_device`, computed from the views (device-side copies, never the views)."""
+        return robot_fields(self.layout, self.qpos, self.qvel, self._sim["sensordata"])
 
     @property
     def state(self) -> np.ndarray:
@@ -255,19 +247,20 @@ class WarpPhysics:
         lay = self.layout
         rows = np.tile(lay.stand_state, (self.num_envs, 1))
         rows[:, lay.time] = self._time.cpu().double().numpy()
-        rows[:, lay.qpos] = self.qpos.double().numpy()
-        rows[:, lay.qvel] = self.qvel.double().numpy()
+        rows[:, lay.qpos] = self.qpos.double().cpu().numpy()
+        rows[:, lay.qvel] = self.qvel.double().cpu().numpy()
         rows.flags.writeable = False
         return rows
 
     def state_dict(self) -> dict[str, Any]:
-        """The worlds' state (qpos, qvel, time, warm start), sensor rows and divergence count."""
+        """The worlds' state (qpos, qvel, time, warm start), sensor rows (tensors on
+        :attr:`torch_device`) and divergence count."""
         return {
             "warp_qpos": self.qpos.clone(),
             "warp_qvel": self.qvel.clone(),
-            "warp_time": self._time.cpu().clone(),
-            "warp_qacc_warmstart": self._warmstart.cpu().clone(),
-            "sensordata": self._host["sensordata"].clone(),
+            "warp_time": self._time.clone(),
+            "warp_qacc_warmstart": self._warmstart.clone(),
+            "sensordata": self._sim["sensordata"].clone(),
             "diverged_total": self.diverged_total,
         }
 
@@ -284,12 +277,12 @@ class WarpPhysics:
                 f"env checkpoint holds {state['warp_qpos'].shape[0]} envs, this env has "
                 f"{self.num_envs}: resume with the run's own config"
             )
-        self.qpos[:] = state["warp_qpos"]
-        self.qvel[:] = state["warp_qvel"]
-        self._host["sensordata"][:] = state["sensordata"]
-        self._time[:] = state["warp_time"].to(self._time.device)
-        self._warmstart[:] = state["warp_qacc_warmstart"].to(self._warmstart.device)
-        self._push("qpos", "qvel", "sensordata")
+        # copy_ takes a checkpoint's tensors from any device (run folders load onto the CPU)
+        self.qpos.copy_(state["warp_qpos"])
+        self.qvel.copy_(state["warp_qvel"])
+        self._sim["sensordata"].copy_(state["sensordata"])
+        self._time.copy_(state["warp_time"])
+        self._warmstart.copy_(state["warp_qacc_warmstart"])
         self.diverged_total = int(state["diverged_total"])
         self._models_dirty = len(self.copies) > 1
 

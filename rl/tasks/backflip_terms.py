@@ -95,13 +95,15 @@ def desired_joint_poses(source: str = BUILTIN_POSES) -> torch.Tensor:
     return torch.tensor(_poses_from_artifact(str(source)), dtype=torch.float32)
 
 
-_POSE_CACHE: dict[str, torch.Tensor] = {}
+_POSE_CACHE: dict[tuple[str, torch.device], torch.Tensor] = {}
 
 
-def _poses(source: str) -> torch.Tensor:
-    if source not in _POSE_CACHE:
-        _POSE_CACHE[source] = desired_joint_poses(source)
-    return _POSE_CACHE[source]
+def _poses(source: str, device: torch.device) -> torch.Tensor:
+    """The poses of ``source`` on ``device`` (loaded, and copied there, once per process)."""
+    key = (source, device)
+    if key not in _POSE_CACHE:
+        _POSE_CACHE[key] = desired_joint_poses(source).to(device)
+    return _POSE_CACHE[key]
 
 
 # ------------------------------------------------------------------------------- reward terms
@@ -163,7 +165,7 @@ def yaw_rate_abs(s: EnvState) -> torch.Tensor:
 def phase_pose_deviation(s: EnvState, source: str = BUILTIN_POSES) -> torch.Tensor:
     """``sum_i 1_phase_i |q - q_des,i|``: Euclidean distance of the joints from the desired pose
     of the env's phase (N,) [rad]; poses from :func:`desired_joint_poses` (``source``)."""
-    poses = _poses(source)
+    poses = _poses(source, s.joint_pos_rad.device)
     if poses.shape[0] != s.num_phases:
         raise ValueError(f"desired poses have {poses.shape[0]} phases, the task {s.num_phases}")
     return (s.joint_pos_rad - poses[s.phase]).norm(dim=-1)
@@ -207,15 +209,16 @@ class StartCommand(Command):
     def __init__(self, cfg: StartCommandConfig, num_envs: int, generator: torch.Generator) -> None:
         self.cfg = cfg
         self.generator = generator
-        self.time_s = torch.zeros(num_envs)
-        self.delay_s = torch.zeros(num_envs)
+        self.device = generator.device  # the env's device: tensors and draws live there
+        self.time_s = torch.zeros(num_envs, device=self.device)
+        self.delay_s = torch.zeros(num_envs, device=self.device)
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """Restart the timers of ``env_ids`` and draw their start delays."""
         low, high = self.cfg.delay_range_s
         self.time_s[env_ids] = 0.0
         self.delay_s[env_ids] = low + (high - low) * torch.rand(
-            env_ids.numel(), generator=self.generator
+            env_ids.numel(), generator=self.generator, device=self.device
         )
 
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
@@ -246,8 +249,8 @@ class StartCommand(Command):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the timers."""
-        self.time_s = state["time_s"].clone()
-        self.delay_s = state["delay_s"].clone()
+        self.time_s = state["time_s"].to(self.device, copy=True)
+        self.delay_s = state["delay_s"].to(self.device, copy=True)
 
 
 # ------------------------------------------------------------------------------------- phases
@@ -266,23 +269,25 @@ class BackflipPhasesConfig:
 
     def build(self, num_envs: int, generator: torch.Generator) -> PhaseMachine:
         """The live FSM."""
-        return BackflipPhaseMachine(self, num_envs)
+        return BackflipPhaseMachine(self, num_envs, generator.device)
 
 
 class BackflipPhaseMachine(PhaseMachine):
     """Per-env phase, pitch turned, highest phase and short-landing flag; the record of each env's
     last finished episode is kept (``last_*``) for evaluation."""
 
-    def __init__(self, cfg: BackflipPhasesConfig, num_envs: int) -> None:
-        self.cfg = cfg
-        self.phase = torch.zeros(num_envs, dtype=torch.long)
-        self.turned_rad = torch.zeros(num_envs)
-        self.max_phase = torch.zeros(num_envs, dtype=torch.long)
-        self.landed_short = torch.zeros(num_envs, dtype=torch.bool)
-        self.fresh = torch.ones(num_envs, dtype=torch.bool)
-        self.last_max_phase = torch.zeros(num_envs, dtype=torch.long)
-        self.last_turned_rad = torch.zeros(num_envs)
-        self.last_landed_short = torch.zeros(num_envs, dtype=torch.bool)
+    def __init__(
+        self, cfg: BackflipPhasesConfig, num_envs: int, device: torch.device | str = "cpu"
+    ) -> None:
+        self.cfg, self.device, n, dev = cfg, device, num_envs, device
+        self.phase = torch.zeros(n, dtype=torch.long, device=dev)
+        self.turned_rad = torch.zeros(n, device=dev)
+        self.max_phase = torch.zeros(n, dtype=torch.long, device=dev)
+        self.landed_short = torch.zeros(n, dtype=torch.bool, device=dev)
+        self.fresh = torch.ones(n, dtype=torch.bool, device=dev)
+        self.last_max_phase = torch.zeros(n, dtype=torch.long, device=dev)
+        self.last_turned_rad = torch.zeros(n, device=dev)
+        self.last_landed_short = torch.zeros(n, dtype=torch.bool, device=dev)
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """Record the finished episodes of ``env_ids`` and put them back in Stand."""
@@ -335,9 +340,9 @@ class BackflipPhaseMachine(PhaseMachine):
         return {k: v.clone() for k, v in vars(self).items() if isinstance(v, torch.Tensor)}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the buffers."""
+        """Restore the buffers (onto this machine's device)."""
         for key, value in state.items():
-            setattr(self, key, value.clone())
+            setattr(self, key, value.to(self.device, copy=True))
 
 
 # ------------------------------------------------------------------------------- skill measure

@@ -246,12 +246,14 @@ class HeightMap:
     """Terrain height on a regular grid, as a torch tensor, with batched lookup.
 
     ``heights[i, j]`` is the top of the terrain at x = x0 + i res, y = y0 + j res (0: the floor).
+    A lookup reads a copy of the grid on the points' device, made once per device.
     """
 
     def __init__(self, heights: torch.Tensor, origin_xy_m: tuple[float, float], res_m: float):
         self.heights = heights  # (X, Y) float32 [m]
         self.origin_xy_m = origin_xy_m  # world x, y of cell (0, 0) [m]
         self.res_m = res_m  # cell size [m]
+        self._on_device: dict[torch.device, torch.Tensor] = {heights.device: heights}
 
     def __call__(self, xy_w: torch.Tensor) -> torch.Tensor:
         """Height [m] at world points ``xy_w`` (..., 2), nearest cell; 0 outside the map."""
@@ -259,7 +261,10 @@ class HeightMap:
         iy = torch.round((xy_w[..., 1] - self.origin_xy_m[1]) / self.res_m).long()
         nx, ny = self.heights.shape
         inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        h = self.heights[ix.clamp(0, nx - 1), iy.clamp(0, ny - 1)]
+        if xy_w.device not in self._on_device:
+            self._on_device[xy_w.device] = self.heights.to(xy_w.device)
+        heights = self._on_device[xy_w.device]
+        h = heights[ix.clamp(0, nx - 1), iy.clamp(0, ny - 1)]
         return torch.where(inside, h, torch.zeros_like(h))
 
     def __repr__(self) -> str:

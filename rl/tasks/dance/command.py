@@ -39,23 +39,28 @@ class ClipTrackingCommand(Command):
     def __init__(self, cfg: ClipTrackingConfig, num_envs: int, generator: torch.Generator) -> None:
         self.cfg = cfg
         self.generator = generator
-        self.library = clip_library(cfg.sources, cfg.step_dt_s)
-        self.clip = torch.zeros(num_envs, dtype=torch.long)
-        self.start_frame = torch.zeros(num_envs, dtype=torch.long)  # global frame index
-        self.steps = torch.zeros(num_envs, dtype=torch.long)
-        self.z_offset_m = torch.zeros(num_envs, dtype=torch.float64)
-        self.fresh = torch.ones(num_envs, dtype=torch.bool)
+        self.device = dev = generator.device  # the env's device: buffers and draws live there
+        self.library = lib = clip_library(cfg.sources, cfg.step_dt_s)
+        # What every step reads, on the env's device once; the poses a reset takes (numpy
+        # rows of the library) cross from the host at resets only.
+        self._start, self._length = lib.start.to(dev), lib.length.to(dev)
+        self._command = lib.command.to(dev)
+        self.clip = torch.zeros(num_envs, dtype=torch.long, device=dev)
+        self.start_frame = torch.zeros(num_envs, dtype=torch.long, device=dev)  # global index
+        self.steps = torch.zeros(num_envs, dtype=torch.long, device=dev)
+        self.z_offset_m = torch.zeros(num_envs, dtype=torch.float64, device=dev)
+        self.fresh = torch.ones(num_envs, dtype=torch.bool, device=dev)
         self._error_sum = 0.0
         self._error_count = 0
 
     def _sample(self, env_ids: torch.Tensor) -> None:
-        lib, m = self.library, env_ids.numel()
-        clip = torch.randint(len(lib.names), (m,), generator=self.generator)
-        length = lib.length[clip]
+        lib, m, dev = self.library, env_ids.numel(), self.device
+        clip = torch.randint(len(lib.names), (m,), generator=self.generator, device=dev)
+        length = self._length[clip]
         span = (length - self.cfg.min_frames_left).clamp_min(1)
-        offset = (torch.rand(m, generator=self.generator) * span).long()
+        offset = (torch.rand(m, generator=self.generator, device=dev) * span).long()
         self.clip[env_ids] = clip
-        self.start_frame[env_ids] = lib.start[clip] + offset
+        self.start_frame[env_ids] = self._start[clip] + offset
         self.steps[env_ids] = 0
 
     def reset_state(
@@ -68,14 +73,14 @@ class ClipTrackingCommand(Command):
         """Draw clip and start frame; the robot takes that frame's pose and velocity, lowered
         (or raised) so its lowest sole corner is where the standing robot's is: on the floor."""
         self._sample(env_ids)
-        frames = self.start_frame[env_ids].numpy()
+        frames = self.start_frame[env_ids].cpu().numpy()  # the host library: a reset-time copy
         lib = self.library
         rows = torch.as_tensor(lib.qpos[frames]).clone()
         shift = torch.as_tensor(lib.floor_shift_m[frames])
         rows[:, 2] -= shift
-        self.z_offset_m[env_ids] = -shift
-        qpos[:] = rows
-        qvel[:] = torch.as_tensor(lib.qvel[frames])
+        self.z_offset_m[env_ids] = -shift.to(self.device)
+        qpos[:] = rows.to(qpos.device)
+        qvel[:] = torch.as_tensor(lib.qvel[frames]).to(qvel.device)
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """The next :meth:`compute` keeps these envs on their start frame."""
@@ -83,8 +88,9 @@ class ClipTrackingCommand(Command):
 
     def frame(self, ahead: int = 0) -> torch.Tensor:
         """Global frame index (N,) of each env's reference ``ahead`` steps on (held at the end)."""
-        local = self.start_frame - self.library.start[self.clip] + self.steps + ahead
-        return self.library.start[self.clip] + local.clamp_max(self.library.length[self.clip] - 1)
+        start = self._start[self.clip]
+        local = self.start_frame - start + self.steps + ahead
+        return start + local.clamp_max(self._length[self.clip] - 1)
 
     def compute(self, state: EnvState, dt_s: float) -> torch.Tensor:
         """Advance the reference by one step (not for envs reset this step) and return the
@@ -101,10 +107,10 @@ class ClipTrackingCommand(Command):
         self.steps += (~self.fresh).long()
         self.fresh[:] = False
         nxt = self.frame(ahead=1)
-        command = self.library.command[nxt].clone()
+        command = self._command[nxt].clone()
         at_end = nxt == self.frame(ahead=0)
         command[at_end, :3] = 0.0
-        command[at_end, 3:7] = torch.tensor([1.0, 0.0, 0.0, 0.0])
+        command[at_end, 3:7] = torch.tensor([1.0, 0.0, 0.0, 0.0], device=self.device)
         return command
 
     def columns(self) -> tuple[CommandColumns, ...]:
@@ -134,17 +140,18 @@ class ClipTrackingCommand(Command):
     def reference_time_s(self) -> torch.Tensor:
         """Per env, the time of its current frame along its clip (N,) [s] (for an oracle
         artifact's coach: the built-in dance artifact of ``solve-dance`` has the same frames)."""
-        return (self.frame(0) - self.library.start[self.clip]).double() * self.library.dt_s
+        return (self.frame(0) - self._start[self.clip]).double() * self.library.dt_s
 
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
-        return torch.as_tensor(self.library.qpos[self.frame(ahead=1).numpy(), 7:]).float()
+        frames = self.frame(ahead=1).cpu().numpy()  # the host library (coaches, not the env step)
+        return torch.as_tensor(self.library.qpos[frames, 7:]).float().to(self.device)
 
     def reference_pose(self, ahead: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
         """Reference pelvis position (N, 3) [m] (with each env's floor offset) and orientation
         (N, 4) w x y z of the frame ``ahead`` steps on."""
-        frames = self.frame(ahead).numpy()
-        qpos = torch.as_tensor(self.library.qpos[frames]).clone()
+        frames = self.frame(ahead).cpu().numpy()  # the host library (evaluation, coaches)
+        qpos = torch.as_tensor(self.library.qpos[frames]).to(self.device, copy=True)
         qpos[:, 2] += self.z_offset_m
         return qpos[:, :3].float(), qpos[:, 3:7].float()
 
@@ -167,6 +174,6 @@ class ClipTrackingCommand(Command):
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the per-env buffers."""
+        """Restore the per-env buffers (onto this command's device)."""
         for key, value in state.items():
-            setattr(self, key, value.clone())
+            setattr(self, key, value.to(self.device, copy=True))

@@ -71,14 +71,15 @@ class VelocityCommand(Command):
     def __init__(self, cfg: VelocityCommandConfig, num_envs: int, generator: torch.Generator):
         self.cfg = cfg
         self.generator = generator
-        self.command = torch.zeros(num_envs, cfg.dim)
-        self.time_left_s = torch.zeros(num_envs)
-        self.clock_s = torch.zeros(num_envs)  # time since the episode's start [s]
-        self.scale = torch.tensor(cfg.curriculum_initial_scale)  # command curriculum [-]
-        self.error_mps = torch.tensor(0.0)  # running mean velocity error (0.5 s time constant)
+        self.device = dev = generator.device  # the env's device: tensors and draws live there
+        self.command = torch.zeros(num_envs, cfg.dim, device=dev)
+        self.time_left_s = torch.zeros(num_envs, device=dev)
+        self.clock_s = torch.zeros(num_envs, device=dev)  # time since the episode's start [s]
+        self.scale = torch.tensor(cfg.curriculum_initial_scale, device=dev)  # curriculum [-]
+        self.error_mps = torch.tensor(0.0, device=dev)  # running mean velocity error (0.5 s)
         ranges = (cfg.lin_vel_x_range_mps, cfg.lin_vel_y_range_mps, cfg.ang_vel_z_range_rps)
-        self._low = torch.tensor([r[0] for r in ranges])
-        self._high = torch.tensor([r[1] for r in ranges])
+        self._low = torch.tensor([r[0] for r in ranges], device=dev)
+        self._high = torch.tensor([r[1] for r in ranges], device=dev)
 
     def resample(self, env_ids: torch.Tensor) -> None:
         """Draw new commands and countdowns for ``env_ids`` (M,) within the scaled ranges."""
@@ -86,11 +87,13 @@ class VelocityCommand(Command):
         if m == 0:
             return
         low, high = self._low * self.scale, self._high * self.scale
-        draw = low + (high - low) * torch.rand(m, 3, generator=gen)
-        standing = torch.rand(m, generator=gen) < self.cfg.standing_fraction
+        draw = low + (high - low) * torch.rand(m, 3, generator=gen, device=self.device)
+        standing = torch.rand(m, generator=gen, device=self.device) < self.cfg.standing_fraction
         self.command[env_ids, :3] = torch.where(standing[:, None], torch.zeros_like(draw), draw)
         t_low, t_high = self.cfg.resampling_time_range_s
-        self.time_left_s[env_ids] = t_low + (t_high - t_low) * torch.rand(m, generator=gen)
+        self.time_left_s[env_ids] = t_low + (t_high - t_low) * torch.rand(
+            m, generator=gen, device=self.device
+        )
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """A new episode starts with a new command and the clock at 0."""
@@ -139,7 +142,7 @@ class VelocityCommand(Command):
 
     def for_evaluation(self) -> None:
         """Evaluations draw from the full command ranges."""
-        self.scale = torch.tensor(1.0)
+        self.scale = torch.tensor(1.0, device=self.device)
 
     def log(self) -> dict[str, float]:
         """``Curriculum/command_scale`` (when the curriculum is on)."""
@@ -164,5 +167,5 @@ class VelocityCommand(Command):
         self.command.copy_(state["command"])
         self.time_left_s.copy_(state["time_left_s"])
         self.clock_s.copy_(state["clock_s"])
-        self.scale = state["scale"].clone()
-        self.error_mps = state["error_mps"].clone()
+        self.scale = state["scale"].to(self.device, copy=True)
+        self.error_mps = state["error_mps"].to(self.device, copy=True)

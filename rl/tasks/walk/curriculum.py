@@ -53,7 +53,9 @@ class TerrainCurriculumConfig:
 class TerrainCurriculum(SkillMeasure):
     """Per-env terrain level and tile; places resetting robots on their tile (``reset_state``)
     and moves levels at episode ends. Per-env tensors are sized at the env's first reset (which
-    resets every env), as the build hook does not receive the number of envs."""
+    resets every env), as the build hook does not receive the number of envs. They live in host
+    memory with the terrain grid and the curriculum's own generator: on a GPU env the rows of
+    resetting and finishing envs cross to the host there (never in the rest of a step)."""
 
     def __init__(self, cfg: TerrainCurriculumConfig, max_episode_length: int) -> None:
         self.cfg = cfg
@@ -79,7 +81,7 @@ class TerrainCurriculum(SkillMeasure):
 
     def pin_tiles(self, tiles: torch.Tensor | None) -> None:
         """Pin env i to tile ``tiles[i]`` = (row, col) at its next resets (None: unpin)."""
-        self.fixed_tiles = None if tiles is None else tiles.long().clone()
+        self.fixed_tiles = None if tiles is None else tiles.long().cpu().clone()
 
     def reset_state(
         self,
@@ -90,26 +92,30 @@ class TerrainCurriculum(SkillMeasure):
     ) -> None:
         """Move resetting robots to the centre of a tile of their level (random column),
         raised by the tile's spawn height."""
+        env_ids, dev = env_ids.cpu(), generator.device  # draws on the env's generator's device
         self._ensure(int(env_ids.max()) + 1)
         m = env_ids.numel()
         new = env_ids[~self.placed[env_ids]]
         if new.numel():
             high = self.cfg.max_init_level + 1
-            self.levels[new] = torch.randint(0, high, (new.numel(),), generator=generator)
+            draw = torch.randint(0, high, (new.numel(),), generator=generator, device=dev)
+            self.levels[new] = draw.cpu()
             self.placed[new] = True
-        self.cols[env_ids] = torch.randint(0, self.terrain.num_cols, (m,), generator=generator)
+        cols = torch.randint(0, self.terrain.num_cols, (m,), generator=generator, device=dev)
+        self.cols[env_ids] = cols.cpu()
         if self.fixed_tiles is not None:
             self.levels[env_ids] = self.fixed_tiles[env_ids, 0]
             self.cols[env_ids] = self.fixed_tiles[env_ids, 1]
         rows, cols = self.levels[env_ids], self.cols[env_ids]
         centre = self.terrain.tile_center_xy(rows, cols)
-        qpos[:, 0:2] = centre.double()
-        qpos[:, 2] += self.terrain.spawn_height_m[rows, cols].double()
+        qpos[:, 0:2] = centre.double().to(qpos.device)
+        qpos[:, 2] += self.terrain.spawn_height_m[rows, cols].double().to(qpos.device)
         self.spawn_xy_w[env_ids] = centre
 
     def distance_walked_m(self, env_ids: torch.Tensor, state: EnvState) -> torch.Tensor:
-        """Horizontal distance (M,) [m] of ``env_ids`` from their episode's start."""
-        return (state.base_pos_w[env_ids, :2] - self.spawn_xy_w[env_ids]).norm(dim=-1)
+        """Horizontal distance (M,) [m] of ``env_ids`` from their episode's start (on the host)."""
+        start_xy = self.spawn_xy_w[env_ids.cpu()]
+        return (state.base_pos_w[env_ids, :2].cpu() - start_xy).norm(dim=-1)
 
     def update_levels(
         self, env_ids: torch.Tensor, distance_m: torch.Tensor, required_m: torch.Tensor
@@ -144,7 +150,7 @@ class TerrainCurriculum(SkillMeasure):
         required = (
             self.cfg.demote_command_fraction * state.command[env_ids, :2].norm(dim=-1) * duration_s
         )
-        self.update_levels(env_ids, distance, required)
+        self.update_levels(env_ids.cpu(), distance, required.cpu())
 
     def mean_level(self) -> float:
         """Mean terrain level of the envs [-]."""

@@ -105,13 +105,15 @@ def stand_still(s: EnvState, max_command: float = 0.1) -> torch.Tensor:
 
 
 @lru_cache(maxsize=8)
-def scan_offsets_b(size_m: tuple[float, float], resolution_m: float) -> torch.Tensor:
-    """Grid points (P, 2) [m] of a ``size_m`` = (length x, width y) scan centred on the pelvis
-    (cached per size: treat the result as read-only)."""
+def scan_offsets_b(
+    size_m: tuple[float, float], resolution_m: float, device: torch.device | str = "cpu"
+) -> torch.Tensor:
+    """Grid points (P, 2) [m] of a ``size_m`` = (length x, width y) scan centred on the pelvis,
+    on ``device`` (cached per size and device: treat the result as read-only)."""
     nx = int(round(size_m[0] / resolution_m)) + 1
     ny = int(round(size_m[1] / resolution_m)) + 1
-    xs = torch.linspace(-size_m[0] / 2, size_m[0] / 2, nx)
-    ys = torch.linspace(-size_m[1] / 2, size_m[1] / 2, ny)
+    xs = torch.linspace(-size_m[0] / 2, size_m[0] / 2, nx, device=device)
+    ys = torch.linspace(-size_m[1] / 2, size_m[1] / 2, ny, device=device)
     gx, gy = torch.meshgrid(xs, ys, indexing="ij")
     return torch.stack([gx.flatten(), gy.flatten()], dim=-1)
 
@@ -131,7 +133,7 @@ def height_scan(
     in the terrain's height map for all envs at once.
     """
     height_map = terrain.height_map if isinstance(terrain, Terrain) else terrain
-    offsets = scan_offsets_b(tuple(size_m), resolution_m)  # (P, 2)
+    offsets = scan_offsets_b(tuple(size_m), resolution_m, s.base_pos_w.device)  # (P, 2)
     q = s.base_quat_w
     # Heading of the pelvis x axis projected on the ground.
     yaw = torch.atan2(
