@@ -67,7 +67,7 @@ def rollout_alone(
     env.set_assist_enabled(False)
     env.set_less_assist_reward(False)
     n = env.num_envs
-    env.reset_envs(torch.arange(n))
+    env.reset_envs(torch.arange(n, device=env.device))
     task = env.task
     evaluator = task.evaluation.build(env) if task.evaluation is not None else None
     num_steps = num_steps or int(env.max_episode_length)
@@ -78,10 +78,10 @@ def rollout_alone(
     obs = env.get_observations()
     if on_step is not None:
         on_step(env)  # the first frame of env 0's episode
-    zeros = torch.zeros(n, ASSIST_ACTION_DIM)
+    zeros = torch.zeros(n, ASSIST_ACTION_DIM, device=env.device)
     with torch.inference_mode():
         for _ in range(num_steps):
-            actions = policy(obs).reshape(n, env.num_actions - ASSIST_ACTION_DIM)
+            actions = policy(obs).reshape(n, env.num_actions - ASSIST_ACTION_DIM).to(env.device)
             obs, rewards, dones, extras = env.step(torch.cat([actions, zeros], dim=-1))
             if on_step is not None and active[0] and not bool(dones[0]):
                 on_step(env)

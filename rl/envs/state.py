@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import torch
 
@@ -110,3 +110,11 @@ class EnvState:
     foot_first_contact: torch.Tensor  # (N, 2) bool, the foot touched down in this step
     body_ground_contact: torch.Tensor  # (N, B) bool, link b (not a foot) touches the ground
     contact_body_names: tuple[str, ...]  # (B,) body names of ``body_ground_contact``
+
+    def to(self, device: str | torch.device) -> EnvState:
+        """This state with every tensor on ``device`` (the same tensors where they already are):
+        evaluators keep host buffers and read a GPU env's state through this."""
+        tensors = {f.name: getattr(self, f.name) for f in fields(self)}
+        return replace(
+            self, **{k: v.to(device) for k, v in tensors.items() if isinstance(v, torch.Tensor)}
+        )

@@ -8,7 +8,7 @@
 # Needs: the repository's virtual environment (.venv) with the gpu extra
 #   (.venv/bin/pip install -e ".[gpu]"), or WHEELS=/folder/of/wheels for an offline install
 #   (bash docs/results/gpu/make_wheels.sh WHEELS on a machine with an index: 873 MB, docs/gpu.md).
-# Budget: about 9 minutes wall clock (stage limits below: 150 + 240 + 330 s, plus start-up).
+# Budget: about 9 minutes wall clock (stage limits below: 120 + 90 + 90 + 240 s, plus start-up).
 set -uo pipefail
 cd "$(dirname "$0")/../../.."
 : "${OUT:?set OUT to the folder for the figures}"
@@ -35,26 +35,30 @@ run() {  # run NAME LIMIT_S COMMAND...: log to $OUT/NAME.log, record the exit co
 git rev-parse HEAD >>"$OUT/machine.txt" 2>&1
 
 # 1. Parity on the GPU against MuJoCo C (same states and actions; the CUDA graph replays from the
-#    second step on), then the slow Warp tests on cuda.
-run parity_cuda 150 $PY docs/results/gpu/parity.py --device cuda --num-envs 64 --steps 20 \
+#    second step on). The slow Warp tests on cuda are left to a longer lease:
+#    env A2CF_WARP_DEVICE=cuda .venv/bin/pytest -q -m slow tests/test_warp_physics.py
+run parity_cuda 120 $PY docs/results/gpu/parity.py --device cuda --num-envs 64 --steps 20 \
   --out "$OUT/parity_cuda.json"
-run tests_cuda 150 env A2CF_WARP_DEVICE=cuda .venv/bin/pytest -q -m slow \
-  tests/test_warp_physics.py -k "not training"
 
-# 2. Env throughput: MuJoCo C and Warp at 1024 worlds in the same run, Warp alone at 4096, 8192.
-run bench_env_1024 120 .venv/bin/a2cf-mb bench env --backends mujoco warp --device cuda \
-  --num-envs 1024 --link-collisions on --num-steps 50 --repeats 2 --output "$OUT/bench_env_1024.json"
-run bench_env_large 120 .venv/bin/a2cf-mb bench env --backends warp --device cuda \
-  --num-envs 4096 8192 --link-collisions on --num-steps 50 --repeats 2 \
-  --output "$OUT/bench_env_large.json"
+# 2. Env throughput (policy steps of all envs per second): stand on MuJoCo C and Warp at 1024
+#    worlds in the same run, Warp alone at 4096 and 8192; walk-flat on Warp at 4096 and 8192.
+run bench_env_stand 90 .venv/bin/a2cf-mb bench env --task stand --backends mujoco warp \
+  --device cuda --num-envs 1024 4096 8192 --link-collisions on --num-steps 30 --repeats 1 \
+  --num-threads 16 --output "$OUT/bench_env_stand.json"
+run bench_env_walk_flat 90 .venv/bin/a2cf-mb bench env --task walk-flat --backends warp \
+  --device cuda --num-envs 4096 8192 --link-collisions on --num-steps 30 --repeats 1 \
+  --output "$OUT/bench_env_walk_flat.json"
 
-# 3. 50 iterations of walk-flat at 4096 envs (physics on the GPU, learner on the GPU).
+# 3. walk-flat trained for the remaining minutes at 4096 envs (physics and learner on the GPU):
+#    its metrics.json gives the end-to-end env steps/s and the iteration time per iteration,
+#    gpu_usage.csv the GPU memory, evals.jsonl the policy alone (assistance off, 256 fresh envs)
+#    every 20 iterations.
 nvidia-smi --query-gpu=timestamp,memory.used,utilization.gpu --format=csv -l 5 \
   >"$OUT/gpu_usage.csv" 2>/dev/null &
 SMI=$!
-run train_walk_flat 330 .venv/bin/a2cf-mb train --task walk-flat --env-backend warp \
-  --env-device cuda --num-envs 4096 --device cuda:0 --iterations 50 --save-interval 50 \
-  --out "$OUT/runs" --run-name walk_flat_warp_4096
+run train_walk_flat 240 .venv/bin/a2cf-mb train --task walk-flat --env-backend warp \
+  --env-device cuda --num-envs 4096 --device cuda:0 --iterations 60 --save-interval 20 \
+  --eval-interval 20 --eval-num-envs 256 --out "$OUT/runs" --run-name walk_flat_warp_4096
 kill "$SMI" 2>/dev/null
 
 {
@@ -62,7 +66,7 @@ kill "$SMI" 2>/dev/null
   $PY - "$OUT" <<'EOF'
 import json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
-for name in ("parity_cuda.json", "bench_env_1024.json", "bench_env_large.json"):
+for name in ("parity_cuda.json", "bench_env_stand.json", "bench_env_walk_flat.json"):
     p = out / name
     if not p.is_file():
         print(name, "missing")
@@ -78,6 +82,13 @@ m = out / "runs" / "walk_flat_warp_4096" / "metrics.json"
 if m.is_file():
     its = json.loads(m.read_text())["iterations"]
     print("train: iterations", len(its), "last", {k: its[-1][k] for k in list(its[-1])[:8]})
+    evals = out / "runs" / "walk_flat_warp_4096" / "evals.jsonl"
+    for line in evals.read_text().splitlines() if evals.is_file() else []:
+        print("alone:", json.loads(line))
+    mem = out / "gpu_usage.csv"
+    if mem.is_file():
+        used = [int(r.split(",")[1].split()[0]) for r in mem.read_text().splitlines()[1:] if "MiB" in r]
+        print("GPU memory used, max:", max(used, default=0), "MiB")
 else:
     print("train: no metrics.json (see train_walk_flat.log)")
 EOF

@@ -42,17 +42,21 @@ class DanceEvaluator:
     def __init__(self, cfg: DanceEvaluationConfig, env: Any) -> None:
         self.cfg = cfg
         self._env = env
-        self.command = env.command.clone()  # targets the state after the next step
-        self.ref_pos, self.ref_quat = env.command_gen.reference_pose(ahead=1)
+        self._read_reference(env)  # targets the state after the next step
         self.rows: list[dict[str, float]] = []
         # per env: its first episode fell, and its joint error at its last step (as training's
         # TrackingSkill charges an episode: the last error if it ran on, fall_error_rad if it fell)
         self.fell = torch.zeros(env.num_envs, dtype=torch.bool)
         self.last_error_rad = torch.zeros(env.num_envs)
 
+    def _read_reference(self, env: Any) -> None:
+        """The command and reference pose the state after the next step is judged by (host)."""
+        self.command = env.command.cpu().clone()
+        self.ref_pos, self.ref_quat = (t.cpu() for t in env.command_gen.reference_pose(ahead=1))
+
     def on_step(self, env: Any, active: torch.Tensor, dones: torch.Tensor, extras: dict) -> None:
         """Errors of the envs still in their first episode (not those reset in this step)."""
-        s = env.env_state
+        s = env.env_state.to("cpu")  # this evaluator's buffers are on the host
         done = dones.bool().cpu()
         self.fell |= active & done & ~extras["time_outs"].bool().cpu()
         keep = active & ~done
@@ -79,8 +83,7 @@ class DanceEvaluator:
             )
             row["active_envs"] = int(keep.sum())
             self.rows.append(row)
-        self.command = env.command.clone()
-        self.ref_pos, self.ref_quat = env.command_gen.reference_pose(ahead=1)
+        self._read_reference(env)
 
     def finish(self, run_dir: str | Path) -> dict[str, Any]:
         """Step-weighted means of every error (and the figure in ``run_dir``)."""

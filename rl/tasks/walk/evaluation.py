@@ -54,8 +54,8 @@ class WalkEvaluator:
         else:  # flat ground: one "flat" row at level 0
             self.tiles = torch.zeros(n, 2, dtype=torch.long)
             self.types = ["flat"] * n
-        env.reset_envs(torch.arange(n))
-        self.start_xy_w = env.env_state.base_pos_w[:, :2].clone()
+        env.reset_envs(torch.arange(n, device=env.device))
+        self.start_xy_w = env.env_state.base_pos_w[:, :2].cpu().clone()
         self.lin_error_sum = torch.zeros(n)
         self.yaw_error_sum = torch.zeros(n)
         self.steps = torch.zeros(n)
@@ -64,7 +64,7 @@ class WalkEvaluator:
 
     def on_step(self, env: Any, active: torch.Tensor, dones: torch.Tensor, extras: dict) -> None:
         """Add this step's errors for envs still in their first episode (``active`` before it)."""
-        s = env.env_state
+        s = env.env_state.to("cpu")  # this evaluator's buffers are on the host
         done = dones.bool().cpu()
         alive = active & ~done  # the state of done envs is already their next episode's
         lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
