@@ -107,7 +107,8 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
     actor_groups = ["policy", "history"] + (
         ["privileged"] if mode.assist and mode.assist_privileged else []
     )
-    ppo = asdict(with_task_discount(cfg).ppo)
+    cfg = with_task_defaults(cfg)
+    ppo = asdict(cfg.ppo)
     init_noise_std = ppo.pop("init_noise_std")
     assist_init_std = ppo.pop("assist_init_noise_std")
     return {
@@ -414,11 +415,22 @@ def resolve_task(cfg: TrainConfig) -> TaskConfig:
     return get_task(cfg.task).with_overrides(cfg.task_overrides)
 
 
-def with_task_discount(cfg: TrainConfig) -> TrainConfig:
-    """``cfg`` with PPO's discount set: the run's own (``--ppo-gamma``), else its task's."""
-    if cfg.ppo.gamma is not None:
-        return cfg
-    return replace(cfg, ppo=replace(cfg.ppo, gamma=resolve_task(cfg).discount))
+def with_task_defaults(cfg: TrainConfig) -> TrainConfig:
+    """``cfg`` with PPO's discount and update epochs set: the run's own (``--ppo-gamma``,
+    ``--ppo-num-learning-epochs``, ``--model-vae-learning-epochs``), else its task's."""
+    ppo, model = cfg.ppo, cfg.model
+    if None in (ppo.gamma, ppo.num_learning_epochs, model.vae_learning_epochs):
+        task = resolve_task(cfg)
+        ppo = replace(
+            ppo,
+            gamma=task.discount if ppo.gamma is None else ppo.gamma,
+            num_learning_epochs=(
+                task.learning_epochs if ppo.num_learning_epochs is None else ppo.num_learning_epochs
+            ),
+        )
+        vae = model.vae_learning_epochs
+        model = replace(model, vae_learning_epochs=task.vae_learning_epochs if vae is None else vae)
+    return replace(cfg, ppo=ppo, model=model)
 
 
 def build_training(
@@ -501,8 +513,8 @@ def _train_locked(
 ) -> TrainResult:
     """:func:`train` while this process holds the run folder's lock."""
     start = start_point(cfg, run_dir)
-    # The run folder's config holds the discount in use, so a resume keeps it.
-    cfg, checkpoint = with_task_discount(start.cfg), start.checkpoint
+    # The run folder's config holds the discount and epochs in use, so a resume keeps them.
+    cfg, checkpoint = with_task_defaults(start.cfg), start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
         eta0 = torch.tensor(start.saved_eta0)
     seed_everything(rank_seed(cfg.seed))

@@ -20,7 +20,9 @@ class PPOConfig:
     """rsl-rl PPO hyper-parameters (rsl-rl / legged-gym defaults)."""
 
     learning_rate: float = 1e-3  # initial Adam learning rate (adaptive schedule) [-]
-    num_learning_epochs: int = 5  # passes over each rollout [-]
+    num_learning_epochs: int | None = (
+        None  # passes over each rollout; None: the task's (TaskConfig.learning_epochs, 5 unless the task says) [-]
+    )
     num_mini_batches: int = 4  # mini-batches per pass [-]
     clip_param: float = 0.2  # PPO ratio clip [-]
     gamma: float | None = (
@@ -48,7 +50,9 @@ class ModelConfig:
     vae_learning_rate: float = 1e-3  # Adam learning rate of the history encoder [-]
     vae_kl_weight: float = 1e-3  # beta of the beta-VAE [-]
     vae_velocity_weight: float = 1.0  # weight of the velocity-estimation loss [-]
-    vae_learning_epochs: int = 0  # encoder-update passes over each rollout; 0 = PPO's epochs [-]
+    vae_learning_epochs: int | None = (
+        None  # encoder-update passes over each rollout; 0 = PPO's epochs; None: the task's (TaskConfig.vae_learning_epochs) [-]
+    )
 
 
 @dataclass(frozen=True)

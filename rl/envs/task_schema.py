@@ -163,7 +163,10 @@ class TaskConfig:
         None  # task-specific eval config (build(env) -> evaluator); None: generic eval
     )
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
-    discount: float = 0.99  # PPO's discount per control step for this task, unless the run gives one (--ppo-gamma) [-]
+    # The task's own PPO update, used where the run gives none (--ppo-gamma, ...):
+    discount: float = 0.99  # PPO's discount per control step [-]
+    learning_epochs: int = 5  # PPO passes over each rollout [-]
+    vae_learning_epochs: int = 0  # history-encoder passes over each rollout; 0 = PPO's [-]
 
     def __post_init__(self) -> None:
         check_unique("reward", self.rewards)
@@ -172,6 +175,11 @@ class TaskConfig:
             check_unique(f"{group} observation", getattr(self.observations, group).terms)
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"task discount must be in (0, 1], got {self.discount}")
+        if self.learning_epochs < 1 or self.vae_learning_epochs < 0:
+            raise ValueError(
+                f"task learning_epochs must be >= 1 and vae_learning_epochs >= 0, got "
+                f"{self.learning_epochs} and {self.vae_learning_epochs}"
+            )
         if self.episode_length_s <= 0:
             raise ValueError(f"task episode_length_s must be > 0 s, got {self.episode_length_s}")
         rows = self.assist_bound
