@@ -31,3 +31,9 @@ ablations)  # on dance: the paper's ablations of plain a2cf
     a2cf-mb train --task dance --mode "$mode" --iterations 650 "${common[@]}" --run-name "dance_${mode}_s$SEED"
   done ;;
 esac
+# Stand with the recipe that learns (Dec 3; the code before it became stand's default, so its
+# flags are given; runs stand2_*): the default a2cf (weaning) and the posture warm start.
+#   R=(--task-reward-weight feet_contact=0 --ppo-gamma 0.995 --ppo-num-learning-epochs 5 --model-vae-learning-epochs 0)
+#   a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" "${R[@]}" --run-name "stand2_a2cfwean_s$SEED"
+#   a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" "${R[@]}" --run-name "stand2_a2cfwarm_s$SEED" \
+#     --warmstart posture --curriculum-force-measure quantile
