@@ -119,6 +119,17 @@ class TrainConfig:
                 "during training: set --eval-interval > 0, or --curriculum-skill-measure alone "
                 "or helped"
             )
+        ppo, vae_epochs = self.ppo, self.model.vae_learning_epochs
+        if ppo.gamma is not None and not 0.0 < ppo.gamma <= 1.0:
+            raise ValueError(f"--ppo-gamma must be in (0, 1], got {ppo.gamma}")
+        if ppo.num_learning_epochs is not None and ppo.num_learning_epochs < 1:
+            raise ValueError(
+                f"--ppo-num-learning-epochs must be >= 1, got {ppo.num_learning_epochs}"
+            )
+        if vae_epochs is not None and vae_epochs < 0:
+            raise ValueError(
+                f"--model-vae-learning-epochs must be >= 0 (0: PPO's epochs), got {vae_epochs}"
+            )
         batch = self.env.num_envs * self.num_steps_per_env
         if batch < self.ppo.num_mini_batches:
             raise ValueError(
