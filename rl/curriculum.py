@@ -50,6 +50,10 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
   help given where help is given).
 - The less-assist reward is switched on (and stays on) the first iteration with
   ``skill_progress >= less_assist_progress`` (0.8, the paper's 80 %).
+- ``anneal_iterations`` N > 0 (an option, not the paper's) caps the bound by a fixed schedule,
+  ``eta0 (1 - k / N)`` after the k-th update: the help is gone after N iterations whatever the
+  rules measure (the reference for "does help early on, taken away on a clock, give a head
+  start?").
 - Assistance is switched off (and stays off) the first iteration in which the applied wrench is
   negligible: ``max`` over visited phases of ``|F_k|`` below ``negligible_force_n`` (paper: 0.1 N,
   "insignificant for a 35 kg robot"), or every bound norm ``|eta[p]|`` below it (the applied
@@ -122,6 +126,7 @@ class CurriculumConfig:
     force_quantile: float = (
         0.9  # quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]
     )
+    anneal_iterations: int = 0  # 0: off; N > 0: a fixed schedule caps the bound at eta0 (1 - k / N) after update k, so the help is gone (assistance off) after N iterations whatever the rules above say (not the paper's) [-]
     min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
 
     def __post_init__(self) -> None:
@@ -153,6 +158,11 @@ class CurriculumConfig:
             )
         if self.alone_window < 1:
             raise ValueError(f"curriculum alone_window must be >= 1, got {self.alone_window}")
+        if self.anneal_iterations < 0:
+            raise ValueError(
+                f"curriculum anneal_iterations must be >= 0 (0: no schedule), got "
+                f"{self.anneal_iterations}"
+            )
         if self.min_phase_samples < 1:
             raise ValueError(
                 f"curriculum min_phase_samples must be >= 1, got {self.min_phase_samples}"
@@ -306,6 +316,9 @@ class AssistCurriculum:
             self.eta = update_bound(
                 self.eta, applied_norm, ruled, skill_learned, self.cfg.epsilon, self.cfg.delta
             )
+            if self.cfg.anneal_iterations > 0:
+                left = max(0.0, 1.0 - (self.num_updates + 1) / self.cfg.anneal_iterations)
+                self.eta = torch.minimum(self.eta, self.eta0 * left)
             if skill_progress >= self.cfg.less_assist_progress:
                 self.less_assist_reward = True
             threshold = self.cfg.negligible_force_n

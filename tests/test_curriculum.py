@@ -376,3 +376,18 @@ def test_no_force_rule_holds_the_bound_until_the_evaluation_says_learned() -> No
     other = AssistCurriculum(ETA0, cur.cfg)
     other.load_state_dict(cur.state_dict())
     assert other.evaluated_progress == 0.9
+
+
+def test_anneal_schedule_caps_the_bound_and_switches_assistance_off() -> None:
+    cur = AssistCurriculum(ETA0, CurriculumConfig(anneal_iterations=4))
+    for it in range(3):  # no rule fires (no force rule, helped skill 0): the clock alone
+        cur.update(it, 0.5 * NORM0, BOTH, skill_progress=0.0)
+        torch.testing.assert_close(cur.eta, ETA0 * (1.0 - (it + 1) / 4))
+        assert cur.assist_enabled
+    cur.update(3, 0.5 * NORM0, BOTH, skill_progress=0.0)
+    assert not cur.assist_enabled and float(cur.eta.abs().max()) == 0.0
+    weaned = AssistCurriculum(ETA0, CurriculumConfig(anneal_iterations=100))
+    weaned.update(0, 0.5 * NORM0, BOTH, skill_progress=0.7)  # the rules go faster: they win
+    torch.testing.assert_close(weaned.eta, 0.8 * ETA0)
+    with pytest.raises(ValueError, match="anneal_iterations"):
+        CurriculumConfig(anneal_iterations=-1)

@@ -441,6 +441,9 @@ def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
         _, _, dones, extras = env.step(actions)
         wrench = extras["assist"]["applied_wrench"]
         assert (wrench[:2] == 0).all() and (wrench[2:].abs() > 0).all()
+        # What the critic and the assist head see: no bound where no help comes.
+        bound = env.env_state.assist_bound
+        assert (bound[:2] == 0).all() and (bound[2:] == 20.0).all()
     assert dones[:6].all()
     # Two alone episodes and four helped ones survived to the time limit.
     assert env.task_components.alone_skill.window.count == 2

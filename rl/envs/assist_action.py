@@ -68,6 +68,13 @@ class AssistAction:
         """eta (num_phases, 6) [N, Nm]."""
         return self.settings.bound
 
+    def observed_bound(self, phase: torch.Tensor) -> torch.Tensor:
+        """The bound each env's help is under (N, 6) [N, Nm] for envs in ``phase`` (N,): eta of
+        its phase, zero for the alone envs (what the privileged and critic observations show:
+        an alone env showing the helped envs' bound would look helped to the critic)."""
+        bound = self.settings.bound[phase]
+        return bound.masked_fill(self.alone[:, None], 0.0) if self.alone.any() else bound
+
     def set_bound(self, eta: torch.Tensor) -> None:
         """Set eta (num_phases, 6) [N, Nm], the per-phase, per-axis bound."""
         self.settings.set_bound(torch.as_tensor(eta).detach())  # moved to this part's device

@@ -277,7 +277,7 @@ class G1VecEnv(VecEnv):
         new phase's bound and the actions: it is what the next observations show."""
         self.task_components.update(state, self.step_dt_s)
         state.phase, state.command = self.phase, self.command
-        state.assist_bound = self.assist.bound[self.phase]
+        state.assist_bound = self.assist.observed_bound(self.phase)
         state.action, state.last_action = self.motion.action, self.motion.last_action
         self.env_state = state
 
@@ -308,7 +308,7 @@ class G1VecEnv(VecEnv):
             action=self.motion.action,
             last_action=self.motion.last_action,
             applied_wrench=self.assist.applied_wrench,
-            assist_bound=self.assist.bound[self.phase],
+            assist_bound=self.assist.observed_bound(self.phase),
             episode_time_s=self.resets.episode_length_buf.float() * self.step_dt_s,
             command=self.command,
             phase=self.phase,
