@@ -368,7 +368,9 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             f"One task end to end, {duration_str(summary['wall_time_s'])} on this machine. "
             f"Both runs: seed {cfg['seed']}, {base['num_envs']} envs x "
             f"{base['num_steps_per_env']} steps x {cfg['iterations']} iterations = "
-            f"{base['env_steps']:,} env steps, one core each, side by side. Numbers: "
+            f"{base['env_steps']:,} env steps, one core each, side by side"
+            + (f", update `{' '.join(cfg['recipe_flags'])}`" if cfg.get("recipe_flags") else "")
+            + ". Numbers: "
             f"[summary.json]({SUMMARY_FILE}); logs: `{LOGS_DIR}/`.",
             "",
             "## 1. The oracle",

@@ -86,7 +86,8 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
 def run_variant(cfg: Any) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
-    skill trigger (``skill:<measure>@<progress>``) where it differs from today's default."""
+    skill trigger (``skill:<measure>@<progress>``) where it differs from today's default and its
+    fixed schedule (``anneal:<iterations>``) where it has one."""
     from rl.curriculum import PAPER_RULES, CurriculumConfig
 
     name = cfg.mode
@@ -100,6 +101,8 @@ def run_variant(cfg: Any) -> str:
     trigger = (cur.skill_measure, cur.skill_learned_progress)
     if trigger != (default.skill_measure, default.skill_learned_progress):
         name += f" skill:{cur.skill_measure}@{cur.skill_learned_progress:g}"
+    if cur.anneal_iterations:
+        name += f" anneal:{cur.anneal_iterations}"
     return name
 
 

@@ -113,3 +113,19 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
     result["task_metrics"]["skill_error_rad"] = 0.1
     assert target.progress(result) == pytest.approx(1.5) and target.reached(result)
     assert target.progress({"survival_fraction": 1.0}) == 0.0  # metric missing
+
+
+@pytest.mark.parametrize(
+    ("mode", "warm", "curriculum", "name"),
+    [
+        ("baseline", None, CurriculumConfig(anneal_iterations=5), "baseline"),
+        ("a2cf", None, CurriculumConfig(), "a2cf"),
+        ("a2cf", "posture", CurriculumConfig(anneal_iterations=200), "a2cf+warm anneal:200"),
+        ("a2cf", None, ALONE_ENVS, "a2cf skill:alone@0.6"),
+    ],
+)
+def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curriculum, name):
+    from rl.learning_study import run_variant
+
+    cfg = tiny_config(tmp_path, mode, warmstart=warm, curriculum=curriculum)
+    assert run_variant(cfg) == name

@@ -310,6 +310,9 @@ def test_train_commands_share_seed_envs_budget_and_differ_in_mode_and_warm_start
     assert a2cf[a2cf.index("--warmstart") + 1] == str(tmp_path / "oracle")
     flags = list(demo_module.A2CF_VARIANT_FLAGS)
     assert a2cf[a2cf.index("--warmstart") + 2 :] == flags
+    recipe = list(demo_module.RECIPE_FLAGS)  # both runs: the same update
+    for args in (base, a2cf):
+        assert args[args.index(recipe[0]) : args.index(recipe[0]) + len(recipe)] == recipe
 
 
 def test_a_failed_stage_is_one_message_with_its_log(capsys, monkeypatch):
