@@ -4,7 +4,7 @@
 # (32 fresh envs, seed 10000, every 40 iterations). One physics thread and one torch thread per
 # run (OMP_NUM_THREADS=1): two runs at a time shared the 2-core machine.
 # The dance baselines are the runs of docs/results/skills_learn (same code path for mode baseline).
-# Usage: SEED=0 bash docs/results/a2cf_lifecycle/run.sh [dance|stand|ablations]
+# Usage: SEED=0 bash docs/results/a2cf_lifecycle/run.sh [dance|stand|stand3|dance3|ablations]
 set -euo pipefail
 OUT=${OUT:-runs/a2cf_lifecycle}
 SEED=${SEED:-0}
@@ -26,6 +26,23 @@ stand)  # 977 iterations = 3.0 M env steps (the issue's budget); no stand oracle
   a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" "${OLD[@]}" --run-name "stand_a2cf_s$SEED" &
   a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand_a2cfwean_s$SEED" &
   wait ;;  # a warm-started stand run (--warmstart posture) was not made
+stand3)  # Dec 3, today's defaults (stand: discount 0.995, 2 PPO + 1 encoder pass; a2cf: weaning
+  # by the helped skill at 0.6, alone envs observe a zero bound); runs stand3_*, baselines
+  # skills_learn/stand_nofc_g995_fast_s*. The evaluation trigger ran 650 iterations (2.0 M).
+  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand3_a2cf_s$SEED" &
+  a2cf-mb train --task stand --mode a2cf --iterations 977 "${common[@]}" --run-name "stand3_anneal_s$SEED" \
+    --curriculum-anneal-iterations 200 &
+  a2cf-mb train --task stand --mode a2cf --iterations 650 "${common[@]}" --run-name "stand3_evaltrig_s$SEED" \
+    --curriculum-skill-measure evaluation --curriculum-skill-learned-progress 0.6 &
+  wait ;;
+dance3)  # Dec 3: the oracle's warm start with the schedule; and the baseline with stand's lighter
+  # update (2 PPO + 1 encoder pass, the demo's), 600 iterations
+  a2cf-mb solve-dance --out "$OUT/oracle_dance" --no-video --overwrite
+  a2cf-mb train --task dance --mode a2cf --iterations 650 "${common[@]}" --run-name "dance_warmanneal_s$SEED" \
+    --warmstart "$OUT/oracle_dance" --curriculum-anneal-iterations 200 &
+  a2cf-mb train --task dance --mode baseline --iterations 600 "${common[@]}" --run-name "dance_base21_s$SEED" \
+    --ppo-num-learning-epochs 2 --model-vae-learning-epochs 1 &
+  wait ;;
 ablations)  # on dance: the paper's ablations of plain a2cf
   for mode in no-pi no-id no-rm; do
     a2cf-mb train --task dance --mode "$mode" --iterations 650 "${common[@]}" --run-name "dance_${mode}_s$SEED"
