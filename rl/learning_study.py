@@ -86,23 +86,36 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
 def run_variant(cfg: Any) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
-    skill trigger (``skill:<measure>@<progress>``) where it differs from today's default and its
-    fixed schedule (``anneal:<iterations>``) where it has one."""
-    from rl.curriculum import PAPER_RULES, CurriculumConfig
-
+    skill trigger (``skill:<measure>@<progress>``) and its fixed schedule (``anneal:<iterations>``,
+    ``anneal:off``) where they differ from today's defaults; last, for any mode, its update
+    (``update:<PPO passes>+<encoder passes>``) where it differs from its task's today."""
     name = cfg.mode
     if cfg.warmstart:
         name += "+warm"
-    if cfg.mode == "baseline":
-        return name
-    cur, default = cfg.curriculum, CurriculumConfig()
+    if cfg.mode != "baseline":
+        name += _curriculum_variant(cfg.curriculum)
+    task = resolve_task(cfg)
+    ppo_passes = cfg.ppo.num_learning_epochs or task.learning_epochs
+    # 0: PPO's passes
+    encoder_passes = cfg.model.vae_learning_epochs or ppo_passes
+    default = (task.learning_epochs, task.vae_learning_epochs or task.learning_epochs)
+    if (ppo_passes, encoder_passes) != default:
+        name += f" update:{ppo_passes}+{encoder_passes}"
+    return name
+
+
+def _curriculum_variant(cur: Any) -> str:
+    """``+paper``, or the skill trigger and the schedule where they differ from the default."""
+    from rl.curriculum import PAPER_RULES, CurriculumConfig
+
+    name, default = "", CurriculumConfig()
     if all(getattr(cur, key) == value for key, value in PAPER_RULES.items()):
-        return name + "+paper"
+        return "+paper"
     trigger = (cur.skill_measure, cur.skill_learned_progress)
     if trigger != (default.skill_measure, default.skill_learned_progress):
         name += f" skill:{cur.skill_measure}@{cur.skill_learned_progress:g}"
-    if cur.anneal_iterations:
-        name += f" anneal:{cur.anneal_iterations}"
+    if cur.anneal_iterations != default.anneal_iterations:
+        name += f" anneal:{cur.anneal_iterations or 'off'}"
     return name
 
 
@@ -132,11 +145,10 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
                 "last_metric": [m["last_metric"] for m in members],
             }
         )
-    baselines = {
-        row["group"].split()[0]: row for row in table if row["group"].endswith(" baseline")
-    }
+    # each group's reference: the baseline of its task with the same update
+    baselines = {_reference(r["group"]): r for r in table if r["group"].split()[1] == "baseline"}
     for row in table:
-        base = baselines.get(row["group"].split()[0])
+        base = baselines.get(_reference(row["group"]))
         mean, ref = row["env_steps_to_target_mean"], base and base["env_steps_to_target_mean"]
         # Ratio of the mean env steps to the target over the seeds that reached it (the
         # "reached" column says how many); None when either side never reached it.
@@ -145,6 +157,12 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
     atomic_write_json(out / "study.json", result)
     _plot([Path(d) for d in run_dirs], runs, out / "study.png")
     return result
+
+
+def _reference(group: str) -> tuple[str, str]:
+    """A group's task and update label (``update:...``, empty for the task's own update)."""
+    words = group.split()
+    return words[0], next((w for w in words if w.startswith("update:")), "")
 
 
 def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:

@@ -28,7 +28,7 @@ import time
 import warnings
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path, PurePath
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from optimal_control.files import process_alive
 
@@ -277,6 +277,15 @@ def require_unused(run_dir: Path) -> None:
         )
 
 
+FIELDS_ADDED_LATER: dict[tuple[str, str], Any] = {
+    ("curriculum", "anneal_iterations"): 0,  # no fixed schedule before it (default 200 since)
+    ("model", "vae_learning_epochs"): 0,  # the encoder made PPO's passes before the option
+    ("ppo", "kl_actions"): "all",  # the joint action's KL before the option
+}
+"""``TrainConfig`` fields added after runs were made, with the value those runs trained with: a
+config without the field is read with it (a resume continues as it began)."""
+
+
 def load_run_config(run_dir: str | Path) -> TrainConfig:
     """The TrainConfig saved in a run folder (clear errors for a missing or broken file)."""
     from rl.train_config import TrainConfig
@@ -287,8 +296,12 @@ def load_run_config(run_dir: str | Path) -> TrainConfig:
             f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
         )
     try:
-        return TrainConfig.from_dict(json.loads(path.read_text())["train"])
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+        data = json.loads(path.read_text())["train"]
+        # a run made before a field existed keeps what it ran with, not today's default
+        for (section, name), value in FIELDS_ADDED_LATER.items():
+            data.get(section, {}).setdefault(name, value)
+        return TrainConfig.from_dict(data)
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as err:
         raise ValueError(
             f"{path} is not a valid run config ({err}); restore it or start a new run"
         ) from err

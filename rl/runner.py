@@ -111,6 +111,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
     ppo = asdict(cfg.ppo)
     init_noise_std = ppo.pop("init_noise_std")
     assist_init_std = ppo.pop("assist_init_noise_std")
+    kl_actions = ppo.pop("kl_actions")
     return {
         "num_steps_per_env": cfg.num_steps_per_env,
         # rsl-rl calls save() every iteration: last.pt is always the latest state; the runner
@@ -137,6 +138,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
             "assist_privileged": mode.assist_privileged,
             "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": init_noise_std},
             "assist_init_std": assist_init_std if mode.assist else None,
+            "kl_motion_only": kl_actions == "motion",
         },
         "critic": {
             "class_name": "MLPModel",

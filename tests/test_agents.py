@@ -224,3 +224,25 @@ def test_negative_encoder_epochs_are_refused() -> None:
     critic = MLPModel(make_obs(), {"critic": ["critic"]}, "critic", 1, hidden_dims=(16,))
     with pytest.raises(ValueError, match="vae_learning_epochs"):
         A2CFPPO(make_actor(), critic, storage, vae_learning_epochs=-1)
+
+
+def test_the_adaptive_learning_rate_can_follow_the_motion_actions_kl_alone() -> None:
+    joint = make_actor()
+    obs = make_obs(16, seed=3)
+    joint(obs, stochastic_output=True)
+    old = tuple(p.detach().clone() for p in joint.output_distribution_params)
+    moved_assist = (old[0].clone(), old[1].clone())
+    moved_assist[0][:, 29:] += 1.0  # only the assist head's mean moves
+    assert float(joint.get_kl_divergence(old, moved_assist).min()) > 1.0  # rsl-rl's: all 35
+    motion = make_actor()
+    motion.kl_motion_only = True
+    torch.testing.assert_close(motion.get_kl_divergence(old, moved_assist), torch.zeros(16))
+    moved_motion = (old[0] + 0.1, old[1])
+    assert float(motion.get_kl_divergence(old, moved_motion).min()) > 0.0
+
+
+def test_kl_actions_is_checked() -> None:
+    from rl.train_config import PPOConfig, TrainConfig
+
+    with pytest.raises(ValueError, match="--ppo-kl-actions"):
+        TrainConfig(ppo=PPOConfig(kl_actions="assist"))

@@ -17,6 +17,7 @@ from rl.learning_study import summarise_study
 from rl.run_folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
 from rl.runner import train
 from rl.tasks.config import SkillTarget
+from rl.train_config import PPOConfig
 
 EVAL = AloneEvalConfig(interval=1, num_envs=3, seed=7)
 
@@ -73,7 +74,8 @@ def test_checkpoint_evaluations_equal_the_ones_during_training(tmp_path) -> None
             assert a[key] == b[key], key
     study = summarise_study([run.run_dir], tmp_path / "study")
     (group,) = study["groups"]
-    assert group["group"] == "stand baseline" and group["seeds"] == [0]
+    # the tiny PPO makes 1 pass over each rollout, stand's default 2 + 1
+    assert group["group"] == "stand baseline update:1+1" and group["seeds"] == [0]
     assert json.loads((tmp_path / "study" / "study.json").read_text()) == study
     assert (tmp_path / "study" / "study.png").stat().st_size > 0
 
@@ -116,16 +118,34 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
 
 
 @pytest.mark.parametrize(
-    ("mode", "warm", "curriculum", "name"),
+    ("mode", "warm", "curriculum", "ppo", "name"),
     [
-        ("baseline", None, CurriculumConfig(anneal_iterations=5), "baseline"),
-        ("a2cf", None, CurriculumConfig(), "a2cf"),
-        ("a2cf", "posture", CurriculumConfig(anneal_iterations=200), "a2cf+warm anneal:200"),
-        ("a2cf", None, ALONE_ENVS, "a2cf skill:alone@0.6"),
+        ("baseline", None, CurriculumConfig(anneal_iterations=5), PPOConfig(), "baseline"),
+        ("a2cf", None, CurriculumConfig(), PPOConfig(), "a2cf"),
+        ("a2cf", None, CurriculumConfig(anneal_iterations=0), PPOConfig(), "a2cf anneal:off"),
+        (
+            "a2cf",
+            "posture",
+            CurriculumConfig(anneal_iterations=100),
+            PPOConfig(),
+            "a2cf+warm anneal:100",
+        ),
+        ("a2cf", None, ALONE_ENVS, PPOConfig(), "a2cf skill:alone@0.6"),
+        # stand's update is 2 PPO + 1 encoder pass; 5 + 0 (PPO's passes) differs
+        (
+            "baseline",
+            None,
+            CurriculumConfig(),
+            PPOConfig(num_learning_epochs=5),
+            "baseline update:5+5",
+        ),
     ],
 )
-def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curriculum, name):
+def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curriculum, ppo, name):
     from rl.learning_study import run_variant
+    from rl.runner import with_task_defaults
 
-    cfg = tiny_config(tmp_path, mode, warmstart=warm, curriculum=curriculum)
-    assert run_variant(cfg) == name
+    cfg = tiny_config(tmp_path, mode, warmstart=warm, curriculum=curriculum, ppo=ppo)
+    if ppo.num_learning_epochs:
+        cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, vae_learning_epochs=0))
+    assert run_variant(with_task_defaults(cfg)) == name

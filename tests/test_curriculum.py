@@ -327,7 +327,7 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
 
 
 def test_alone_measure_triggers_the_decay_and_helped_progress_does_not() -> None:
-    cur = AssistCurriculum(ETA0, CurriculumConfig(skill_measure="alone"))
+    cur = AssistCurriculum(ETA0, CurriculumConfig(skill_measure="alone", anneal_iterations=0))
     assert cur.cfg.alone_share > 0
     mid = 0.7 * NORM0  # inside the band: the force rule holds the bound
     cur.update(0, mid, BOTH, skill_progress=1.5, alone_progress=0.1)  # helped skill only
@@ -351,21 +351,25 @@ def test_event_averages_the_alone_progress_over_the_rollout() -> None:
     assert row["alone_progress"] == pytest.approx(0.8) and row["skill_learned"]
 
 
-def test_the_default_weans_by_the_helped_skill_with_no_force_rule() -> None:
+def test_the_default_weans_by_the_helped_skill_under_a_200_iteration_schedule() -> None:
     cur = AssistCurriculum(ETA0)
-    assert (cur.cfg.force_measure, cur.cfg.skill_measure) == ("none", "helped")
+    cfg = cur.cfg
+    assert (cfg.force_measure, cfg.skill_measure, cfg.anneal_iterations) == ("none", "helped", 200)
     for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
         cur.update(it, 0.1 * NORM0, BOTH, skill_progress=0.59, alone_progress=1.5)
-    torch.testing.assert_close(cur.eta, ETA0)
-    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.6)
-    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+    torch.testing.assert_close(cur.eta, (1 - 3 / 200) * ETA0)  # the schedule's cap only
+    cur.update(3, 0.1 * NORM0, BOTH, skill_progress=0.6)  # weaning: below the cap (1 - 4 / 200)
+    torch.testing.assert_close(cur.eta, 0.8 * (1 - 3 / 200) * ETA0)
     cur.update(4, 0.1 * NORM0, BOTH, skill_progress=0.5)  # the helped skill dropped: pause
-    torch.testing.assert_close(cur.eta, 0.8 * ETA0)
+    torch.testing.assert_close(cur.eta, 0.8 * (1 - 3 / 200) * ETA0)
 
 
 def test_no_force_rule_holds_the_bound_until_the_evaluation_says_learned() -> None:
     cur = AssistCurriculum(
-        ETA0, CurriculumConfig(skill_measure="evaluation", skill_learned_progress=0.8)
+        ETA0,
+        CurriculumConfig(
+            skill_measure="evaluation", skill_learned_progress=0.8, anneal_iterations=0
+        ),
     )
     for it in range(3):  # an untrained head uses a tenth of its bound: the paper would shrink
         cur.update(it, 0.1 * NORM0, BOTH, skill_progress=1.5, alone_progress=1.5)
