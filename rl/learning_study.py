@@ -87,13 +87,16 @@ def run_variant(cfg: Any) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
     skill trigger (``skill:<measure>@<progress>``) and its fixed schedule (``anneal:<iterations>``,
-    ``anneal:off``) where they differ from today's defaults; last, for any mode, its update
+    ``anneal:off``) and whose KL sets the learning rate (``kl:all``) where they differ from today's
+    defaults; last, for any mode, its update
     (``update:<PPO passes>+<encoder passes>``) where it differs from its task's today."""
     name = cfg.mode
     if cfg.warmstart:
         name += "+warm"
     if cfg.mode != "baseline":
         name += _curriculum_variant(cfg.curriculum)
+        if cfg.ppo.kl_actions != type(cfg.ppo)().kl_actions:
+            name += f" kl:{cfg.ppo.kl_actions}"
     task = resolve_task(cfg)
     ppo_passes = cfg.ppo.num_learning_epochs or task.learning_epochs
     # 0: PPO's passes

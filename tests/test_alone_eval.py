@@ -131,6 +131,7 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
             "a2cf+warm anneal:100",
         ),
         ("a2cf", None, ALONE_ENVS, PPOConfig(), "a2cf skill:alone@0.6"),
+        ("a2cf", None, CurriculumConfig(), PPOConfig(kl_actions="all"), "a2cf kl:all"),
         # stand's update is 2 PPO + 1 encoder pass; 5 + 0 (PPO's passes) differs
         (
             "baseline",

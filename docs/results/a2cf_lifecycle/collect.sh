@@ -19,4 +19,28 @@ for run in "$SRC"/*/; do
 done
 # from the copies here (metrics.json.gz is read as is): the figures need nothing outside the repo
 python "$DST/summarise.py" "$BASE"/dance_baseline_s{0,1,2} "$BASE"/stand_baseline_n128_s0 \
-  "$DST"/{dance,stand}_*/ --out "$DST"
+  "$DST"/{dance,stand}_a2cf*/ --out "$DST"
+# Dec 3, today's defaults: stand against the baselines of the recipe that learns (same code path
+# for mode baseline), and the dance baseline with the demo's lighter update against the 5 + 5 ones
+if compgen -G "$DST/stand3_*/" > /dev/null; then
+  python "$DST/summarise.py" "$BASE"/stand_nofc_g995_fast_s{0,1,2} "$DST"/stand3_a2cf_s*/ \
+    "$DST"/stand3_anneal_s*/ --out "$DST/stand3"
+  # the paper's ablations of the schedule variant (no-pi, no-id, no-rm), seeds 0-2
+  python "$DST/summarise.py" "$BASE"/stand_nofc_g995_fast_s{0,1,2} "$DST"/stand3_anneal_s*/ \
+    "$DST"/stand3_anneal_no-*_s[012]/ --out "$DST/stand3_ablations"
+  # no-id, the ablation ahead on seeds 0-2, and the baseline on two more seeds (3, 4: same
+  # recipe, 650 iterations)
+  if compgen -G "$DST/stand_baseline_s*/" > /dev/null; then
+    python "$DST/summarise.py" "$BASE"/stand_nofc_g995_fast_s{0,1,2} "$DST"/stand_baseline_s*/ \
+      "$DST"/stand3_anneal_no-id_s*/ --out "$DST/stand3_no-id_5seeds"
+  fi
+fi
+if compgen -G "$DST/dance3_*/" > /dev/null; then
+  # dance's update (5 PPO + 5 encoder passes): the schedule, without and with the warm start
+  python "$DST/summarise.py" "$BASE"/dance_baseline_s{0,1,2} "$DST"/dance3_anneal_s*/ \
+    "$DST"/dance3_warmanneal_s*/ --out "$DST/dance3"
+  # stand's update (2 + 1, the demo's): baseline, a2cf and a2cf + warm start, the learning rate
+  # set by the joint action's KL (seed 0) and by the motion actions' (today's default)
+  python "$DST/summarise.py" "$DST"/dance3_base21_s*/ "$DST"/dance3_a2cf21*_s*/ \
+    "$DST"/dance3_warm21*_s*/ --out "$DST/dance3_update21"
+fi
