@@ -93,7 +93,7 @@ help is gone halfway: the second half shows the motion policy alone."""
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 15 min for the whole demo on 2 cores (measured 15.3 min) [-]
+    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 10 min for the whole demo on 2 cores (measured 8.2 min in a fresh clone) [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
     evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]
