@@ -84,8 +84,9 @@ A2CF_VARIANT_FLAGS: tuple[str, ...] = ()
 """``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <oracle>``; the report
 and summary.json print them. Empty: the default curriculum (the help gone after 200 iterations by
 the fixed schedule, sooner where the helped skill holds 0.6 of its target; no force rule; a quarter
-of the envs never helped; docs/training.md), the variant that reached the targets on every stand
-seed and first on dance seed 0 (docs/results/a2cf_lifecycle). With the demo's 400 iterations the
+of the envs never helped; the learning rate set by the motion actions' KL; docs/training.md).
+Measured with it (docs/results/a2cf_lifecycle): every stand and dance seed at the target alone,
+the dance warm start on 3 of 3 seeds with the demo's update. With the demo's 400 iterations the
 help is gone halfway: the second half shows the motion policy alone."""
 
 

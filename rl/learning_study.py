@@ -21,6 +21,7 @@ from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.alone_eval import curve_arrays
 from rl.run_folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE
 from rl.runner import load_run_config, resolve_task
+from rl.train_config import PPOConfig
 
 
 def read_evals(run_dir: Path) -> list[dict[str, Any]]:
@@ -86,21 +87,20 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
 def run_variant(cfg: Any) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
-    skill trigger (``skill:<measure>@<progress>``) and its fixed schedule (``anneal:<iterations>``,
+    skill trigger (``skill:<measure>@<progress>``), its fixed schedule (``anneal:<iterations>``,
     ``anneal:off``) and whose KL sets the learning rate (``kl:all``) where they differ from today's
-    defaults; last, for any mode, its update
-    (``update:<PPO passes>+<encoder passes>``) where it differs from its task's today."""
+    defaults; last, for any mode, its update (``update:<PPO passes>+<encoder passes>``) where it
+    differs from its task's today."""
     name = cfg.mode
     if cfg.warmstart:
         name += "+warm"
     if cfg.mode != "baseline":
         name += _curriculum_variant(cfg.curriculum)
-        if cfg.ppo.kl_actions != type(cfg.ppo)().kl_actions:
+        if cfg.ppo.kl_actions != PPOConfig().kl_actions:
             name += f" kl:{cfg.ppo.kl_actions}"
     task = resolve_task(cfg)
     ppo_passes = cfg.ppo.num_learning_epochs or task.learning_epochs
-    # 0: PPO's passes
-    encoder_passes = cfg.model.vae_learning_epochs or ppo_passes
+    encoder_passes = cfg.model.vae_learning_epochs or ppo_passes  # 0: PPO's passes
     default = (task.learning_epochs, task.vae_learning_epochs or task.learning_epochs)
     if (ppo_passes, encoder_passes) != default:
         name += f" update:{ppo_passes}+{encoder_passes}"

@@ -165,7 +165,7 @@ class RunLogger(Logger):
         self.curriculum: AssistCurriculum | None = None
 
     def log(self, it: int, start_it: int, total_it: int, collect_time: float, learn_time: float,
-            loss_dict: dict, *args: Any, **kwargs: Any) -> None:  # fmt: skip
+            loss_dict: dict, learning_rate: float, *args: Any, **kwargs: Any) -> None:  # fmt: skip
         """Record the iteration's row (before rsl-rl clears its step extras), then log."""
         steps = self.cfg["num_steps_per_env"] * self.num_envs
         extras = self.ep_extras
@@ -190,9 +190,13 @@ class RunLogger(Logger):
                 "assist_enabled": bool(cur and cur.assist_enabled),
                 "less_assist_reward": bool(cur and cur.less_assist_reward),
                 "losses": dict(loss_dict),
+                "learning_rate": float(learning_rate),
             }
         )
-        super().log(it, start_it, total_it, collect_time, learn_time, loss_dict, *args, **kwargs)
+        super().log(
+            it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, *args,
+            **kwargs,
+        )  # fmt: skip
 
     def state_dict(self) -> dict[str, Any]:
         """Totals, episode buffers and running sums (identical logs after a resume)."""

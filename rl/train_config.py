@@ -34,7 +34,7 @@ class PPOConfig:
     max_grad_norm: float = 1.0  # gradient-norm clip [-]
     desired_kl: float = 0.01  # target KL of the adaptive learning-rate schedule [-]
     init_noise_std: float = 0.5  # initial std of the motion actions (raw action units) [-]
-    kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" (the motion actions') or "all" (the joint action, rsl-rl's; the warm-started assist head then held the dance learning rate 2.5-4x lower) [-]
+    kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" (the motion actions') or "all" (the joint action, rsl-rl's; the warm-started assist head then held the dance learning rate 3.4x lower) [-]
     assist_init_noise_std: float = 0.3  # initial std of the raw assist actions (before tanh); the paper's 1.0 is a random push of ~0.6 of the bound redrawn every step [-]
 
 

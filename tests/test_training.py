@@ -66,6 +66,7 @@ def test_two_iterations_of_every_mode(tmp_path, mode: str) -> None:
     assert len(metrics["iterations"]) == 2
     assert metrics["onnx"]["max_abs_error"] < 1e-4
     assert all(torch.isfinite(torch.tensor(r["mean_step_reward"])) for r in metrics["iterations"])
+    assert all(1e-5 <= r["learning_rate"] <= 1e-2 for r in metrics["iterations"])  # rsl-rl's range
     state = torch.load(run / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     actor_keys = state["actor_state_dict"].keys()
     has_assist_head = any(k.startswith("mlp.assist.") for k in actor_keys)
@@ -188,7 +189,7 @@ def test_curriculum_shrinks_an_unused_bound_in_real_training(tmp_path) -> None:
 
 
 PLAIN_KEYS = ("mean_step_reward", "mean_episode_return", "mean_episode_length", "skill_progress",
-              "applied_force_n", "eta_norm", "assist_enabled", "losses")  # fmt: skip
+              "applied_force_n", "eta_norm", "assist_enabled", "losses", "learning_rate")  # fmt: skip
 
 
 def test_killed_and_resumed_run_equals_the_uninterrupted_one(tmp_path) -> None:

@@ -74,6 +74,12 @@ dance3_update21)  # Dec 4: stand's update (2 PPO + 1 encoder pass, the demo's), 
     --warmstart "$OUT/oracle_dance" &
   wait ;;
 esac
+# The learning-rate probe of dance's update (learning_rates.json: base55, a2cf55, base21, a2cf21),
+# 30 iterations each, seed 0, out runs/probe:
+#   a2cf-mb train --task dance --mode baseline|a2cf --iterations 30 "${common[@]}" --eval-interval 0 \
+#     --out runs/probe --run-name base55|a2cf55 [--ppo-num-learning-epochs 2 --model-vae-learning-epochs 1: base21|a2cf21]
+# (the probe ran before --ppo-kl-actions existed: the joint action's KL)
+# then: python docs/results/a2cf_lifecycle/learning_rates.py RUN... --out learning_rates.json
 # Stand with the recipe that learns (Dec 3; the code before it became stand's default, so its
 # flags are given; runs stand2_*): the default a2cf (weaning) and the posture warm start.
 #   R=(--task-reward-weight feet_contact=0 --ppo-gamma 0.995 --ppo-num-learning-epochs 5 --model-vae-learning-epochs 0)
