@@ -493,9 +493,26 @@ def load_motion_clip_with_report(
     Raises :class:`ClipError` when more than ``cfg.max_no_contact_share`` of the frames have no
     sole in contact; warns (:class:`ClipPlausibilityWarning`) above ``cfg.warn_no_contact_share``.
     """
-    robot = build_pinocchio_model()
     rows, fps = read_clip(path, cfg)
-    source = f"Motion clip '{path}'"
+    return reference_from_clip_rows(rows, fps, cfg, name, source=f"Motion clip '{path}'")
+
+
+def reference_from_clip_rows(
+    rows: np.ndarray,
+    fps: float,
+    cfg: ClipConfig = ClipConfig(),
+    name: str = "dance",
+    source: str = "clip",
+    phase_names: tuple[str, ...] = ("dance",),
+    robot: G1Pinocchio | None = None,
+) -> tuple[Reference, dict]:
+    """Raw clip rows (T, 36) at ``fps`` [1/s] to a one-phase reference and its plausibility report.
+
+    The pipeline of :func:`load_motion_clip_with_report` after reading the file (validate, despike,
+    resample to ``cfg.target_fps``, ground, differentiate, contacts, plausibility), for callers
+    that read other layouts; ``source`` names the input in error messages.
+    """
+    robot = robot or build_pinocchio_model()
     rows = validate_clip(rows, fps, cfg, robot, source=source)
     replaced = 0
     if cfg.despike:
@@ -504,7 +521,9 @@ def load_motion_clip_with_report(
     q = resample(rows, fps, cfg.target_fps)
     if cfg.max_frames > 0:
         q = q[: cfg.max_frames]
-    ref = reference_from_configurations(q, 1.0 / cfg.target_fps, cfg, name=name, robot=robot)
+    ref = reference_from_configurations(
+        q, 1.0 / cfg.target_fps, cfg, name=name, phase_names=phase_names, robot=robot
+    )
     heights, _ = sole_corner_heights_m(ref.q, robot)
     raw_heights, _ = sole_corner_heights_m(q, robot)
     ground = float(np.min(raw_heights) - np.min(heights)) if cfg.ground_to_lowest_sole else 0.0
@@ -520,7 +539,7 @@ def load_motion_clip_with_report(
             "and the contact thresholds (--clip-contact-height-m) suit the clip."
         )
     for problem in plausibility_problems(report, cfg):
-        warnings.warn(f"{source}: {problem}", ClipPlausibilityWarning, stacklevel=2)
+        warnings.warn(f"{source}: {problem}", ClipPlausibilityWarning, stacklevel=3)
     return ref, report
 
 

@@ -43,6 +43,7 @@ class EvalConfig:
     use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
     video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length [s]
+    video_ghost_side_m: float = 1.0  # the reference's ghost (tracking tasks) shifted to the camera's right; 0 overlays it on the robot's reference pose [m]
     sim2sim: bool = False  # also roll the ONNX policy out in the second simulator (rl.sim2sim)
 
     def __post_init__(self) -> None:
@@ -63,7 +64,9 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     ``on_step(env, active, dones, extras)`` runs after every step (``active`` (N,) bool: the env is
     still in its first episode, before this step) and ``finish(run_dir) -> dict`` at the end (it
     may write plots into ``run_dir``).
-    The result is also written to ``RUN_DIR/eval.json``.
+    The video (``cfg.video``) replays env 0's first episode; a task whose command has a reference
+    motion (:meth:`~rl.envs.components.Command.reference_qpos`) shows it as a ghost beside the
+    robot. The result is also written to ``RUN_DIR/eval.json``.
     """
     from rl.export import OnnxMotionPolicy
 
@@ -87,16 +90,16 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         def policy(obs: Any) -> torch.Tensor:
             return torch_policy(obs["policy"], obs["history"])
 
-    qpos_env0: list[np.ndarray] = []
+    frames = _VideoFrames()
 
     def record(env: G1VecEnv) -> None:
         if cfg.video:
-            qpos_env0.append(env.state[0, env.layout.qpos].copy())
+            frames.record(env)
 
     with contextlib.closing(env):
         alone = rollout_alone(env, policy, cfg.num_steps, out_dir=run_dir, on_step=record)
         if cfg.video:
-            _extend_video(env, policy, qpos_env0, round(cfg.video_min_s / env.step_dt_s))
+            _extend_video(env, policy, frames, round(cfg.video_min_s / env.step_dt_s))
     num_steps = alone["num_steps"]
     result = {
         "run_dir": str(run_dir),
@@ -116,7 +119,14 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
 
         try:
             result["video"] = str(
-                _render_qpos(np.asarray(qpos_env0), env.step_dt_s, cfg.video, train_cfg.task)
+                _render_qpos(
+                    np.asarray(frames.qpos),
+                    env.step_dt_s,
+                    cfg.video,
+                    train_cfg.task,
+                    ghost_qpos=frames.ghost_qpos(),
+                    ghost_side_m=cfg.video_ghost_side_m,
+                )
             )
         except RenderUnavailableError as err:  # no GL / no encoder: the metrics still count
             result["video_note"] = f"no video: {err}"
@@ -136,24 +146,57 @@ def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch
     return runner.alg.get_policy().motion_policy().eval()
 
 
+class _VideoFrames:
+    """Env 0's MuJoCo qpos per recorded step (36,) and, when its task has a reference motion,
+    the reference's qpos (36,) at the same step."""
+
+    def __init__(self) -> None:
+        self.qpos: list[np.ndarray] = []
+        self.reference: list[np.ndarray] = []
+
+    def __len__(self) -> int:
+        return len(self.qpos)
+
+    def record(self, env: G1VecEnv) -> None:
+        """Append env 0's current state (and its reference pose, if the command has one)."""
+        self.qpos.append(env.state[0, env.layout.qpos].copy())
+        reference = env.command_gen.reference_qpos()
+        if reference is not None:
+            self.reference.append(np.array(reference[0], dtype=np.float64))
+
+    def ghost_qpos(self) -> np.ndarray | None:
+        """The reference's qpos (T, 36), one per frame; None for a task without a reference."""
+        return np.asarray(self.reference) if self.reference else None
+
+
 def _extend_video(
-    env: G1VecEnv, policy: Callable[[Any], torch.Tensor], qpos_env0: list[np.ndarray], frames: int
+    env: G1VecEnv, policy: Callable[[Any], torch.Tensor], video: _VideoFrames, frames: int
 ) -> None:
     """Append env 0's frames, across its resets, until the video has ``frames`` frames (a policy
     that falls at once still gets a video of several seconds: fall, respawn, fall)."""
     zeros = torch.zeros(env.num_envs, ASSIST_ACTION_DIM)
     obs = env.get_observations()
     with torch.inference_mode():
-        while len(qpos_env0) < frames:
+        while len(video) < frames:
             actions = policy(obs).reshape(env.num_envs, env.num_actions - ASSIST_ACTION_DIM)
             obs, _, _, _ = env.step(torch.cat([actions, zeros], dim=-1))
-            qpos_env0.append(env.state[0, env.layout.qpos].copy())
+            video.record(env)
 
 
-def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
-    """Kinematic replay video of MuJoCo configurations (T, 36) with the full visual G1 model."""
+def _render_qpos(
+    qpos: np.ndarray,
+    dt_s: float,
+    path: str,
+    name: str,
+    *,
+    ghost_qpos: np.ndarray | None,
+    ghost_side_m: float,
+) -> Path:
+    """Kinematic replay video of MuJoCo configurations (T, 36) with the full visual G1 model;
+    ``ghost_qpos`` (T, 36): the reference pose of each frame, drawn as a ghost ``ghost_side_m``
+    [m] to the camera's right."""
     from optimal_control.reference import Reference
-    from optimal_control.render import render_reference
+    from optimal_control.render import RenderConfig, render_reference
     from robots.conventions import mj_to_pin_q
 
     q = np.stack([mj_to_pin_q(row) for row in qpos])
@@ -169,7 +212,9 @@ def _render_qpos(qpos: np.ndarray, dt_s: float, path: str, name: str) -> Path:
         dt=dt_s,
         name=name,
     )
-    return render_reference(ref, path)
+    ghost_q = None if ghost_qpos is None else mj_to_pin_q(np.asarray(ghost_qpos))
+    cfg = dataclasses.replace(RenderConfig(), ghost_side_m=ghost_side_m)
+    return render_reference(ref, path, cfg, ghost_q=ghost_q)
 
 
 def evaluate_checkpoints(

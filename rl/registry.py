@@ -14,8 +14,9 @@ from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
 from rl.tasks.backflip import BACKFLIP
 from rl.tasks.config import TaskConfig
-from rl.tasks.dance import DANCE, DANCE_PAPER
+from rl.tasks.dance import DANCE_JOINTS, DANCE_PAPER
 from rl.tasks.stand import STAND
+from rl.tasks.track import DANCE, TRACK
 from rl.tasks.walk import WALK, WALK_FLAT, WALK_PAPER
 
 TASKS: dict[str, TaskConfig] = {
@@ -24,8 +25,11 @@ TASKS: dict[str, TaskConfig] = {
     WALK_FLAT.name: WALK_FLAT,
     WALK_PAPER.name: WALK_PAPER,
     BACKFLIP.name: BACKFLIP,
+    TRACK.name: TRACK,
     DANCE.name: DANCE,
     DANCE_PAPER.name: DANCE_PAPER,
+    "track-paper": dataclasses.replace(DANCE_PAPER, name="track-paper"),
+    DANCE_JOINTS.name: DANCE_JOINTS,
 }
 """Registered tasks by name, each with its default config."""
 

@@ -31,6 +31,7 @@ rank 0 alone writes; each rank seeds its envs with ``seed + rank`` and learns on
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import random
@@ -418,7 +419,27 @@ def initial_bounds(task: TaskConfig, mode: ModeSpec, eta0: torch.Tensor | None) 
 
 def resolve_task(cfg: TrainConfig) -> TaskConfig:
     """The run's task: the registered config with the run's overrides applied."""
-    return get_task(cfg.task).with_overrides(cfg.task_overrides)
+    task = get_task(cfg.task).with_overrides(cfg.task_overrides)
+    return with_references(task, cfg.reference, cfg.reference_frames)
+
+
+def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) -> TaskConfig:
+    """``task`` tracking ``references`` (segment ``frames``, "A:B"); unchanged when neither is
+    given. A task whose command tracks no reference refuses them in one line."""
+    if not references and not frames:
+        return task
+    fields = {f.name for f in dataclasses.fields(task.commands)}
+    wanted = {"sources": tuple(references)} if references else {}
+    if frames:
+        wanted["frames"] = frames
+    missing = sorted(set(wanted) - fields)
+    if missing:
+        flag = "--reference" if "sources" in missing else "--reference-frames"
+        raise ValueError(
+            f"task '{task.name}' takes no {flag}: it tracks no reference motion of a user's; use "
+            "--task track"
+        )
+    return dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
 
 
 def with_task_defaults(cfg: TrainConfig) -> TrainConfig:

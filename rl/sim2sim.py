@@ -243,7 +243,26 @@ class _Robots:
                 np.stack([self._ground_contacts(d) for d in self.datas])
             ),
             contact_body_names=self.contact_body_names,
+            **self._tracked_bodies(logic.task.scene.tracked_bodies),
+            targets=logic.command_gen.targets(),
         )  # fmt: skip
+
+    def _tracked_bodies(self, bodies: tuple[str, ...]) -> dict[str, torch.Tensor]:
+        """The ``EnvState.body_*`` fields of a tracking task's links (link frames, world)."""
+        ids = [self.model.body(b).id for b in bodies]
+        vel = np.zeros((self.num_envs, len(ids), 6))
+        for i, data in enumerate(self.datas):
+            for k, body in enumerate(ids):
+                mujoco.mj_objectVelocity(
+                    self.model, data, mujoco.mjtObj.mjOBJ_XBODY, body, vel[i, k], 0
+                )
+        stack = lambda attr: torch.tensor(np.stack([getattr(d, attr)[ids] for d in self.datas]))  # noqa: E731
+        return {
+            "body_pos_w": stack("xpos").float().reshape(self.num_envs, len(ids), 3),
+            "body_quat_w": stack("xquat").float().reshape(self.num_envs, len(ids), 4),
+            "body_lin_vel_w": torch.tensor(vel[..., 3:]).float(),
+            "body_ang_vel_w": torch.tensor(vel[..., :3]).float(),
+        }
 
 
 def _initial_states(
@@ -389,6 +408,9 @@ def run_sim2sim(
         lengths += active
         fell |= active & failed
         active &= ~failed
+        ends = logic.command_gen.time_outs()  # a tracking reference's last frame: survived
+        if ends is not None:
+            active &= ~ends.numpy()
         logic.advance(state, dt)
         last_action = action
         if not active.any():

@@ -90,6 +90,10 @@ class TrainConfig:
     distill: WarmStartConfig = field(
         default_factory=WarmStartConfig
     )  # DAgger rounds of the warm start
+    reference: tuple[
+        str, ...
+    ] = ()  # motions a tracking task tracks, one per episode: clip files (LAFAN1 G1 CSV, NPZ, whole_body_tracking/mjlab motion NPZ), oracle artifact folders or "builtin"; empty: the task's own [-]
+    reference_frames: str = ""  # segment A:B of every reference's source frames (A inclusive, B exclusive); empty: all [-]
     task_overrides: dict[str, Any] = field(
         default_factory=dict
     )  # dotted task-field changes, see rl.task_overrides

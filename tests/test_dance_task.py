@@ -16,7 +16,8 @@ from rl.registry import get_task, make_env
 from rl.runner import train
 from rl.tasks import dance_terms as dt
 from rl.tasks.config import quiet
-from rl.tasks.dance import DANCE, DANCE_PAPER, dance_task
+from rl.tasks.dance import DANCE_JOINTS as DANCE
+from rl.tasks.dance import DANCE_PAPER, dance_task
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,7 @@ from rl.registry import TASKS, make_env
 from rl.runner import train
 from rl.sim2sim import Sim2SimConfig, run_sim2sim
 from rl.tasks.config import TaskConfig, quiet
-from rl.tasks.dance import DANCE
+from rl.tasks.dance import DANCE_JOINTS as DANCE
 from rl.tasks.stand import STAND
 from rl.tasks.terms import TerminationTerm
 from rl.tasks.walk import WALK_FLAT

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 import torch
 
@@ -320,6 +321,37 @@ def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> No
     saved = json.loads((run / "eval.json").read_text())
     assert saved["video_note"].startswith("no video: MuJoCo offscreen rendering failed")
     assert "video" not in saved and saved["num_steps"] == 3 == result["num_steps"]
+
+
+def test_eval_video_frames_carry_a_tracking_tasks_reference() -> None:
+    """Env 0's video frames: a dance env starts on its reference frame (the ghost's first pose is
+    the robot's), then the ghost follows the clip, one pose per frame; stand has no ghost."""
+    from rl.evaluate import _VideoFrames
+    from rl.registry import get_task, make_env
+    from rl.tasks.config import quiet
+
+    env = make_env(quiet(get_task("dance")), 2, num_threads=1)
+    try:
+        frames = _VideoFrames()
+        frames.record(env)
+        for _ in range(3):
+            env.step(torch.zeros(2, env.num_actions))
+            frames.record(env)
+        now = env.command_gen.reference_qpos()
+    finally:
+        env.close()
+    ghost = frames.ghost_qpos()
+    assert ghost is not None and ghost.shape == (4, 36) == np.asarray(frames.qpos).shape
+    np.testing.assert_allclose(ghost[0], frames.qpos[0], atol=1e-9)
+    np.testing.assert_array_equal(ghost[-1], now[0])
+    assert np.abs(ghost[-1] - ghost[0]).max() > 1e-4  # the reference moved on
+    env = make_env("stand", 1, num_threads=1)
+    try:
+        frames = _VideoFrames()
+        frames.record(env)
+    finally:
+        env.close()
+    assert frames.ghost_qpos() is None and len(frames) == 1
 
 
 def test_figures_are_written_atomically(tmp_path) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -149,6 +151,33 @@ def test_render_two_tiny_frames(walk_plan, tmp_path):
     )
     assert path.stat().st_size > 0
     assert [p.name for p in tmp_path.iterdir()] == ["r.mp4"]  # no temporary file left
+
+
+def test_a_ghost_render_draws_a_second_bluish_g1(walk_plan, tmp_path):
+    """The reference overlaid on itself as a ghost: same camera, so frames differ only where the
+    robot is, tinted towards the ghost's blue; beside it (or a wrong shape) also works / fails."""
+    import imageio.v2 as imageio
+
+    from optimal_control.render import RenderConfig, RenderUnavailableError, render_reference
+
+    ref = walk_plan.reference
+    cfg = RenderConfig(width=96, height=64, max_frames=3, overlay_text=False)
+    try:
+        plain = render_reference(ref, tmp_path / "plain.mp4", cfg)
+    except RenderUnavailableError as err:
+        pytest.skip(f"no offscreen rendering here: {err}")
+    ghost = render_reference(ref, tmp_path / "ghost.mp4", cfg, ghost_q=ref.q)
+    a, b = (np.stack(imageio.mimread(p)).astype(float) for p in (plain, ghost))
+    assert a.shape == b.shape == (3, 64, 96, 3)
+    changed = np.abs(b - a).sum(axis=-1) > 30  # beyond the codec's noise
+    assert 0.005 < changed.mean() < 0.5  # the robot's pixels, not the whole frame
+    tint = (b - a)[changed]
+    assert tint[:, 2].mean() > 0 > tint[:, 0].mean()  # bluer, less red: the ghost's colour
+    beside = dataclasses.replace(cfg, ghost_side_m=1.0, overlay_text=True)
+    side = render_reference(ref, tmp_path / "side.mp4", beside, ghost_q=ref.q)
+    assert len(imageio.mimread(side)) == 3
+    with pytest.raises(ValueError, match="one configuration per frame"):
+        render_reference(ref, tmp_path / "bad.mp4", cfg, ghost_q=ref.q[:5])
 
 
 def test_a_render_killed_mid_video_leaves_the_old_file_and_no_partial(

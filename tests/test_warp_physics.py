@@ -31,7 +31,7 @@ from rl.envs.vec_env import G1VecEnv
 from rl.registry import make_env
 from rl.runner import train
 from rl.tasks.config import quiet
-from rl.tasks.dance import DANCE
+from rl.tasks.dance import DANCE_JOINTS as DANCE
 from rl.tasks.stand import STAND
 
 needs_warp = pytest.mark.skipif(

@@ -11,6 +11,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
 
 from rl.envs.state import EnvState
@@ -88,6 +89,23 @@ class Command(Component, ABC):
     def reference_joint_pos_rad(self) -> torch.Tensor | None:
         """Per env, the reference's joint pose (N, 29) [rad] for the state after the next step
         (what ``--warmstart-motion`` clones the motion head onto); None without a reference."""
+        return None
+
+    def reference_qpos(self) -> np.ndarray | None:
+        """Per env, the MuJoCo qpos (N, 36) of the reference frame the robot is on now (with the
+        env's floor offset), float64 on the host; None when the task has no reference motion (a
+        video then shows the robot alone)."""
+        return None
+
+    def targets(self) -> dict[str, torch.Tensor]:
+        """What the reference asks of the state after the next step beyond the command (which the
+        policy observes), for reward and termination terms (``EnvState.targets``; e.g. a tracking
+        task's reference body poses (N, K, 3)); empty: nothing."""
+        return {}
+
+    def time_outs(self) -> torch.Tensor | None:
+        """(N,) bool, episodes that end now without failing because the command is over (a
+        tracking reference's last frame was reached); None: the episode length alone decides."""
         return None
 
 

@@ -52,6 +52,7 @@ def build_physics_model(
     cfg: MujocoModelConfig = MujocoModelConfig(),
     link_collisions: bool = True,
     terrain: Callable[[mujoco.MjSpec], None] | None = None,
+    tracked_bodies: tuple[str, ...] = (),
 ) -> mujoco.MjModel:
     """Compile the mesh-free G1 the envs step (a fresh, writable model on every call).
 
@@ -59,6 +60,8 @@ def build_physics_model(
         cfg: the G1 model options (physics step, floor, sole spheres).
         link_collisions: add the fitted link primitives (collide with floor and terrain).
         terrain: hook adding terrain geoms to the spec before compiling.
+        tracked_bodies: links whose frame pose and velocity become sensors (a tracking task's
+            bodies, :func:`add_body_sensors`); none: the model is as without them.
     """
     spec = build_mujoco_spec(cfg)
     for geom in list(spec.geoms):
@@ -96,7 +99,34 @@ def build_physics_model(
             objname=body,
         )
         sensor.intprm[:3] = [CONTACT_FOUND, 0, 1]
+    add_body_sensors(spec, tracked_bodies)
     return spec.compile()
+
+
+BODY_SENSORS = (
+    ("pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
+    ("quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT),
+    ("linvel", mujoco.mjtSensor.mjSENS_FRAMELINVEL),
+    ("angvel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL),
+)
+"""Per tracked body: its link frame's world position [m], orientation (w x y z), linear and
+angular velocity (world frame) [m/s, rad/s], as ``body_<kind>_<name>`` sensors."""
+
+
+def add_body_sensors(spec: mujoco.MjSpec, bodies: tuple[str, ...]) -> None:
+    """Add the :data:`BODY_SENSORS` of each link in ``bodies`` (its frame, not its CoM)."""
+    names = {b.name for b in spec.bodies}
+    unknown = [b for b in bodies if b not in names]
+    if unknown:
+        raise ValueError(f"tracked bodies {unknown} are not G1 links; links: {sorted(names)}")
+    for kind, sensor_type in BODY_SENSORS:
+        for body in bodies:
+            spec.add_sensor(
+                name=f"body_{kind}_{body}",
+                type=sensor_type,
+                objtype=mujoco.mjtObj.mjOBJ_XBODY,
+                objname=body,
+            )
 
 
 def _state_offset(model: mujoco.MjModel, component: mujoco.mjtState) -> int:
@@ -136,6 +166,11 @@ class ModelLayout:
     contact: np.ndarray  # sensor columns of the link-ground contact counts, one per contact body
     contact_bodies: tuple[str, ...]  # names of the bodies of ``contact``
     joint_range_rad: np.ndarray  # (29, 2) position limits of the actuated joints [rad]
+    tracked_bodies: tuple[str, ...]  # links with body sensors (K), see add_body_sensors
+    body_pos: np.ndarray  # (K, 3) sensor columns of their frame positions p_w [m]
+    body_quat: np.ndarray  # (K, 4) sensor columns of their orientations, w x y z
+    body_lin_vel: np.ndarray  # (K, 3) sensor columns of their linear velocities v_w [m/s]
+    body_ang_vel: np.ndarray  # (K, 3) sensor columns of their angular velocities w_w [rad/s]
     stand_state: np.ndarray  # FULLPHYSICS row of the standing keyframe, shape (nstate,)
 
 
@@ -154,6 +189,16 @@ def model_layout(model: mujoco.MjModel) -> ModelLayout:
         for i in range(model.nsensor)
         if model.sensor(i).name.startswith(CONTACT_SENSOR_PREFIX)
     )
+    tracked = tuple(
+        model.sensor(i).name[len("body_pos_") :]
+        for i in range(model.nsensor)
+        if model.sensor(i).name.startswith("body_pos_")
+    )
+
+    def body_columns(kind: str, width: int) -> np.ndarray:
+        cols = [np.arange(width) + _sensor_slice(model, f"body_{kind}_{b}").start for b in tracked]
+        return np.array(cols, dtype=int).reshape(len(tracked), width)
+
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key(STAND_KEYFRAME).id)
     stand = np.empty(nstate)
@@ -177,5 +222,10 @@ def model_layout(model: mujoco.MjModel) -> ModelLayout:
         ),
         contact_bodies=bodies,
         joint_range_rad=np.array([model.joint(j.name).range for j in g1.JOINTS]),
+        tracked_bodies=tracked,
+        body_pos=body_columns("pos", 3),
+        body_quat=body_columns("quat", 4),
+        body_lin_vel=body_columns("linvel", 3),
+        body_ang_vel=body_columns("angvel", 3),
         stand_state=stand,
     )

@@ -99,6 +99,15 @@ def robot_fields(
         "foot_vel_w": torch.stack([sens[:, lay.foot_vel[0]], sens[:, lay.foot_vel[1]]], dim=1),
         "body_ground_contact": sens[:, lay.contact] > 0.5,
         "contact_body_names": lay.contact_bodies,
+        **{
+            name: sens[:, torch.as_tensor(cols, dtype=torch.long, device=sens.device)]
+            for name, cols in (
+                ("body_pos_w", lay.body_pos),
+                ("body_quat_w", lay.body_quat),
+                ("body_lin_vel_w", lay.body_lin_vel),
+                ("body_ang_vel_w", lay.body_ang_vel),
+            )
+        },
     }
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 
 import torch
 
@@ -110,11 +110,19 @@ class EnvState:
     foot_first_contact: torch.Tensor  # (N, 2) bool, the foot touched down in this step
     body_ground_contact: torch.Tensor  # (N, B) bool, link b (not a foot) touches the ground
     contact_body_names: tuple[str, ...]  # (B,) body names of ``body_ground_contact``
+    # A tracking task's links (SceneConfig.tracked_bodies, K of them; K = 0 for other tasks):
+    body_pos_w: torch.Tensor | None = None  # (N, K, 3) link frame positions [m]
+    body_quat_w: torch.Tensor | None = None  # (N, K, 4) link orientations, w x y z
+    body_lin_vel_w: torch.Tensor | None = None  # (N, K, 3) link linear velocities, world [m/s]
+    body_ang_vel_w: torch.Tensor | None = None  # (N, K, 3) link angular velocities, world [rad/s]
+    targets: dict[str, torch.Tensor] = field(
+        default_factory=dict
+    )  # what the command's reference asks of this state beyond the command, for rewards (Command.targets; e.g. body poses (N, K, 3)) [-]
 
     def to(self, device: str | torch.device) -> EnvState:
         """This state with every tensor on ``device`` (the same tensors where they already are):
         evaluators keep host buffers and read a GPU env's state through this."""
         tensors = {f.name: getattr(self, f.name) for f in fields(self)}
-        return replace(
-            self, **{k: v.to(device) for k, v in tensors.items() if isinstance(v, torch.Tensor)}
-        )
+        moved = {k: v.to(device) for k, v in tensors.items() if isinstance(v, torch.Tensor)}
+        moved["targets"] = {k: v.to(device) for k, v in self.targets.items()}
+        return replace(self, **moved)

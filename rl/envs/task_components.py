@@ -38,6 +38,10 @@ class TaskComponents:
         )
         self._skill_cfg, self._max_episode_length = task.skill, max_episode_length
         self.phase = torch.zeros(num_envs, dtype=torch.long, device=device)
+        self.targets: dict[
+            str, torch.Tensor
+        ] = {}  # the command's reference targets (Command.targets)
+        self._no_time_outs = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.all = (self.command_gen, self.phase_machine, self.skill)
 
     def track_alone(self, window: int | None) -> None:
@@ -76,6 +80,12 @@ class TaskComponents:
         """Phase and command of the state after a step of ``dt_s`` [s] (0 after a reset)."""
         self.phase = self.phase_machine.update(state)
         self.command = self.command_gen.compute(state, dt_s)
+        self.targets = self.command_gen.targets()
+
+    def time_outs(self) -> torch.Tensor:
+        """(N,) bool: episodes the command ends this step (its reference has run out)."""
+        ends = self.command_gen.time_outs()
+        return self._no_time_outs if ends is None else ends
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """Every component's :meth:`reset` of ``env_ids`` (M,)."""

@@ -38,6 +38,9 @@ class SceneConfig:
     floor: bool = True  # a ground plane at z = 0
     link_collisions: bool = True  # fitted capsules/boxes on the links collide with floor/terrain
     terrain: TerrainFn | None = None  # adds terrain geoms to the spec; None: floor only
+    tracked_bodies: tuple[
+        str, ...
+    ] = ()  # links whose pose and velocity the state reports (EnvState.body_*) [-]
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,10 @@ class G1VecEnv(VecEnv):
         self.num_phases, self.phase_names = task.num_phases, task.phase_names
         self.generator = gen = torch.Generator(device=dev).manual_seed(cfg.seed)
         model_cfg = MujocoModelConfig(**{**model_cfg.__dict__, "floor": task.scene.floor})
-        self.model = build_physics_model(model_cfg, task.scene.link_collisions, task.scene.terrain)
+        scene = task.scene
+        self.model = build_physics_model(
+            model_cfg, scene.link_collisions, scene.terrain, scene.tracked_bodies
+        )
         self.total_mass_kg = float(self.model.body_subtreemass[0])
         self.weight_n = self.total_mass_kg * GRAVITY_MPS2
         self.randomizer = Randomizer(task.randomization, self.model, n, gen, dev)
@@ -187,7 +190,9 @@ class G1VecEnv(VecEnv):
         failed, termination_log = any_failure(self.task.terminations, state)
         state.terminated = failed
         terminated = failed | diverged
-        time_outs = self.resets.time_outs(terminated)
+        time_outs = self.resets.time_outs(terminated) | (
+            self.task_components.time_outs() & ~terminated
+        )
         dones = terminated | time_outs
         dt = self.step_dt_s
         reward, log = sum_rewards(self.task.rewards, state, dt, self.assist.rewards(dt))
@@ -277,6 +282,7 @@ class G1VecEnv(VecEnv):
         new phase's bound and the actions: it is what the next observations show."""
         self.task_components.update(state, self.step_dt_s)
         state.phase, state.command = self.phase, self.command
+        state.targets = self.task_components.targets
         state.assist_bound = self.assist.observed_bound(self.phase)
         state.action, state.last_action = self.motion.action, self.motion.last_action
         self.env_state = state
@@ -314,4 +320,5 @@ class G1VecEnv(VecEnv):
             phase=self.phase,
             randomization_params=self.randomizer.params,
             terminated=terminated,
+            targets=self.task_components.targets,
         )

@@ -84,17 +84,21 @@ class ClipLibrary:
     @classmethod
     def load(cls, sources: tuple[str, ...], step_dt_s: float) -> ClipLibrary:
         """Load every source; all clips must have the policy step ``step_dt_s`` [s] as frame step."""
+        if not sources:
+            raise ValueError("the dance task needs at least one clip source")
+        return cls.from_references(tuple(sources), [load_reference(s) for s in sources], step_dt_s)
+
+    @classmethod
+    def from_references(cls, names: tuple[str, ...], refs: list, step_dt_s: float) -> ClipLibrary:
+        """The library of loaded references (one per name), each at the frame step ``step_dt_s``."""
         from optimal_control.motion_clip import sole_corner_heights_m
         from robots.conventions import pin_to_mj_qpos, pin_to_mj_qvel
         from robots.pinocchio_model import build_pinocchio_model
 
-        if not sources:
-            raise ValueError("the dance task needs at least one clip source")
         robot = build_pinocchio_model()
         stand_floor = sole_corner_heights_m(robot.q_stand[None], robot)[0].min()
         qpos, qvel, shift, starts, lengths = [], [], [], [], []
-        for source in sources:
-            ref = load_reference(source)
+        for source, ref in zip(names, refs, strict=True):
             if abs(ref.dt - step_dt_s) > 1e-9:
                 raise ValueError(
                     f"dance clip '{source}' has frame step {ref.dt} s, the policy step is "
@@ -108,7 +112,7 @@ class ClipLibrary:
             shift.append(heights.min(axis=1) - stand_floor)
         qpos_all, qvel_all = np.concatenate(qpos), np.concatenate(qvel)
         return cls(
-            names=tuple(sources),
+            names=tuple(names),
             qpos=qpos_all,
             qvel=qvel_all,
             floor_shift_m=np.concatenate(shift),

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
 
 from rl.envs.state import EnvState
@@ -40,7 +41,7 @@ class ClipTrackingCommand(Command):
         self.cfg = cfg
         self.generator = generator
         self.device = dev = generator.device  # the env's device: buffers and draws live there
-        self.library = lib = clip_library(cfg.sources, cfg.step_dt_s)
+        self.library = lib = self._load_library(cfg)
         # What every step reads, on the env's device once; the poses a reset takes (numpy
         # rows of the library) cross from the host at resets only.
         self._start, self._length = lib.start.to(dev), lib.length.to(dev)
@@ -52,6 +53,10 @@ class ClipTrackingCommand(Command):
         self.fresh = torch.ones(num_envs, dtype=torch.bool, device=dev)
         self._error_sum = 0.0
         self._error_count = 0
+
+    def _load_library(self, cfg: Any) -> Any:
+        """The (per-process cached) clip library of ``cfg``'s sources."""
+        return clip_library(cfg.sources, cfg.step_dt_s)
 
     def _sample(self, env_ids: torch.Tensor) -> None:
         lib, m, dev = self.library, env_ids.numel(), self.device
@@ -154,6 +159,13 @@ class ClipTrackingCommand(Command):
         qpos = torch.as_tensor(self.library.qpos[frames]).to(self.device, copy=True)
         qpos[:, 2] += self.z_offset_m
         return qpos[:, :3].float(), qpos[:, 3:7].float()
+
+    def reference_qpos(self) -> np.ndarray:
+        """MuJoCo qpos (N, 36) of each env's current frame, with its floor offset (videos)."""
+        frames = self.frame(0).cpu().numpy()
+        qpos = self.library.qpos[frames].copy()
+        qpos[:, 2] += self.z_offset_m.cpu().numpy()
+        return qpos
 
     def log(self) -> dict[str, float]:
         """Mean absolute joint tracking error of the steps since the last log [rad]."""

@@ -1,0 +1,90 @@
+"""``track``: track any reference motion (a dance clip, an oracle artifact's motion) with the
+whole-body tracking recipe of :mod:`rl.tasks.track.terms`; ``dance`` is ``track`` on the built-in
+choreography.
+
+Rewards (whole_body_tracking's G1 recipe, weights per second): anchor position 0.5 (std 0.3 m)
+and orientation 0.5 (0.4 rad), body positions 1.0 (0.3 m) and orientations 1.0 (0.4 rad) relative
+to the anchor, body linear 1.0 (1 m/s) and angular velocities 1.0 (3.14 rad/s); action rate -0.1,
+joint limits -10, link contacts (all but the feet) -0.1; less-assist 2 (A2CF). Episodes start on
+the reference (reference state initialisation, adaptive start sampling) and end at its last frame
+(a time-out), at the 20 s cap, or on a drift termination. Flat ground, randomised friction,
+payload and CoM, no pushes. Skill: :mod:`rl.tasks.track.evaluation` (a statue fails it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from rl import rewards
+from rl.curriculum import paper_bound_rows
+from rl.tasks.components import SinglePhaseConfig
+from rl.tasks.config import InitialStateConfig, PushConfig, SceneConfig, SkillTarget, TaskConfig
+from rl.tasks.dance.clips import BUILTIN_CLIP
+from rl.tasks.stand import STAND_OBSERVATIONS
+from rl.tasks.terms import RewardTerm, TerminationTerm
+from rl.tasks.track import terms
+from rl.tasks.track.command import MotionCommandConfig
+from rl.tasks.track.evaluation import TrackEvaluationConfig
+from rl.tasks.track.skill import MotionSkillConfig
+
+TRACK = TaskConfig(
+    name="track",
+    description="track a reference motion (--reference PATH...; default: the built-in dance): "
+    "command [q_ref, qd_ref, anchor pose seen from the robot]",
+    observations=STAND_OBSERVATIONS,
+    rewards=(
+        RewardTerm("anchor_position", terms.anchor_position, weight=0.5, params={"std": 0.3}),
+        RewardTerm("anchor_orientation", terms.anchor_orientation, weight=0.5, params={"std": 0.4}),
+        RewardTerm("body_position", terms.body_position, weight=1.0, params={"std": 0.3}),
+        RewardTerm("body_orientation", terms.body_orientation, weight=1.0, params={"std": 0.4}),
+        RewardTerm("body_lin_vel", terms.body_linear_velocity, weight=1.0, params={"std": 1.0}),
+        RewardTerm("body_ang_vel", terms.body_angular_velocity, weight=1.0, params={"std": 3.14}),
+        RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.1),
+        RewardTerm("joint_limits", rewards.joint_pos_limits, weight=-10.0),
+        RewardTerm("link_contacts", rewards.link_ground_contact, weight=-0.1),
+    ),
+    terminations=(
+        TerminationTerm("anchor_height", terms.anchor_height_drift, params={"max_m": 0.25}),
+        TerminationTerm("anchor_tilt", terms.anchor_tilt_drift, params={"max_rad": 0.8}),
+        TerminationTerm(
+            "end_effector_height", terms.end_effector_height_drift, params={"max_m": 0.25}
+        ),
+    ),
+    assist_bound=paper_bound_rows("dance"),
+    episode_length_s=20.0,
+    scene=SceneConfig(tracked_bodies=terms.TRACKED_BODIES),
+    # The reset puts the robot exactly on its reference frame (the command's reset_state).
+    initial_state=InitialStateConfig(joint_pos_noise_rad=0.0, base_vel_noise=0.0, random_yaw=False),
+    pushes=PushConfig(enabled=False),
+    commands=MotionCommandConfig(),
+    phases=SinglePhaseConfig(names=("track",)),
+    skill=MotionSkillConfig(threshold_rad=0.16),
+    less_assist_weight=2.0,
+    evaluation=TrackEvaluationConfig(),
+    target=SkillTarget(min_survival=0.9, metric="tracking_score", max_metric=1.0),
+    learning_epochs=2,
+    vae_learning_epochs=1,
+)
+"""The registered tracking task (default reference: the built-in dance)."""
+
+
+def track_task(
+    references: tuple[str, ...] = (BUILTIN_CLIP,), frames: str = "", name: str = "track"
+) -> TaskConfig:
+    """The tracking task on ``references`` (segment ``frames`` "A:B" of each), named ``name``."""
+    sources = tuple(str(r) for r in references)
+    return dataclasses.replace(
+        TRACK,
+        name=name,
+        description=f"{TRACK.description}; references: {', '.join(sources)}",
+        commands=dataclasses.replace(TRACK.commands, sources=sources, frames=frames),
+    )
+
+
+DANCE = dataclasses.replace(
+    TRACK,
+    name="dance",
+    description="track the built-in dance (the track task on it; --reference for clips)",
+    phases=SinglePhaseConfig(names=("dance",)),
+)
+"""The dance: ``track`` on the built-in choreography (phase named "dance", as its oracle's)."""

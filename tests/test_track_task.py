@@ -1,0 +1,195 @@
+"""The tracking task: the env's link sensors agree with the reference's kinematics, the rewards
+peak on the reference and are blind to a shifted or turned origin, episodes end at the
+reference's end without failing, adaptive start sampling, evaluation from the first frame, a
+statue fails the skill measure, and references reach the trainer from the CLI config."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from rl.registry import get_task, make_env
+from rl.runner import with_references
+from rl.tasks.config import quiet
+from rl.tasks.track import TRACK, terms, track_task
+from rl.tasks.track.command import parse_frames
+from rl.tasks.track.terms import ANCHOR, yaw_quat
+
+
+@pytest.fixture(scope="module")
+def wave_clip(tmp_path_factory, g1_pin) -> str:
+    """A 2 s, 50 fps NPZ clip of the stand pose with both arms waving and a small knee bend."""
+    frames = 100
+    t = np.arange(frames) / 50.0
+    q = np.tile(g1_pin.q_stand, (frames, 1))
+    q[:, 7 + 15] += 0.6 * np.sin(2 * np.pi * 0.5 * t)  # left shoulder pitch
+    q[:, 7 + 22] += 0.6 * np.sin(2 * np.pi * 0.5 * t)  # right shoulder pitch
+    path = tmp_path_factory.mktemp("clips") / "wave.npz"
+    np.savez(path, qpos=q, fps=50.0)
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def env(wave_clip):
+    env = make_env(quiet(track_task((wave_clip,))), 4, num_threads=1)
+    yield env
+    env.close()
+
+
+def _on_reference(env, ahead: int = 1):
+    """Put every robot exactly on the frame its command targets (with its floor offset)."""
+    cmd, lay = env.command_gen, env.layout
+    frames = cmd.frame(ahead=ahead).numpy()
+    qpos = cmd.library.qpos[frames].copy()
+    qpos[:, 2] += cmd.z_offset_m.numpy()
+    env.state[:, lay.qpos] = qpos
+    env.state[:, lay.qvel] = cmd.library.qvel[frames]
+    env.physics.refresh_sensors(torch.arange(env.num_envs))
+    return env._read_state()
+
+
+def test_link_sensors_match_the_reference_kinematics(env) -> None:
+    s = _on_reference(env)
+    for key in ("body_pos_w", "body_quat_w", "body_lin_vel_w", "body_ang_vel_w"):
+        torch.testing.assert_close(s.__dict__[key], s.targets[key], atol=1e-4, rtol=0), key
+    for term in env.task.rewards[:6]:
+        torch.testing.assert_close(term(s), torch.ones(env.num_envs), atol=1e-4, rtol=0)
+    assert not any(t(s).any() for t in env.task.terminations)
+    # one frame off (the current frame, not the target), the link errors are not zero
+    off = _on_reference(env, ahead=0)
+    off.targets = s.targets
+    assert (terms.body_linear_velocity(off) < 1.0).all() or (terms.body_position(off) < 1.0).all()
+
+
+def test_relative_body_rewards_ignore_a_shifted_and_turned_origin(env) -> None:
+    s = _on_reference(env)
+    yaw = torch.full((env.num_envs,), 0.7)
+    rot = yaw_quat(yaw)
+    shifted = dict(s.targets)
+    pos = s.targets["body_pos_w"] - s.targets["body_pos_w"][:, ANCHOR : ANCHOR + 1]
+    n, k = pos.shape[:2]
+    from rl.envs.state import quat_multiply, quat_rotate
+
+    turned = quat_rotate(rot.repeat_interleave(k, 0), pos.reshape(-1, 3)).reshape(n, k, 3)
+    shifted["body_pos_w"] = (
+        turned + torch.tensor([1.5, -2.0, 0.0]) + s.targets["body_pos_w"][:, ANCHOR : ANCHOR + 1]
+    )
+    shifted["body_quat_w"] = quat_multiply(
+        rot.repeat_interleave(k, 0), s.targets["body_quat_w"].reshape(-1, 4)
+    ).reshape(n, k, 4)
+    moved = dataclasses.replace(s, targets=shifted)
+    torch.testing.assert_close(terms.body_position(moved), torch.ones(n), atol=1e-4, rtol=0)
+    torch.testing.assert_close(terms.body_orientation(moved), torch.ones(n), atol=1e-4, rtol=0)
+    # the global anchor terms do see it
+    assert (terms.anchor_position(moved) < 0.01).all()
+    assert (terms.anchor_orientation(moved) < 0.2).all()
+
+
+def test_drift_terminations_fire_past_their_thresholds(env) -> None:
+    s = _on_reference(env)
+    lifted = dict(s.targets)
+    lifted["body_pos_w"] = s.targets["body_pos_w"] + torch.tensor([0.0, 0.0, 0.3])
+    moved = dataclasses.replace(s, targets=lifted)
+    assert terms.anchor_height_drift(moved).all()
+    assert terms.end_effector_height_drift(moved).all()
+    assert not terms.anchor_tilt_drift(moved).any()
+
+
+def test_episodes_end_at_the_reference_end_as_time_outs(wave_clip) -> None:
+    env = make_env(quiet(track_task((wave_clip,))), 2, num_threads=1)
+    try:
+        cmd = env.command_gen
+        cmd.for_evaluation()
+        env.reset_envs(torch.arange(2))
+        assert (cmd.frame(0) == cmd._start[cmd.clip]).all()  # evaluation: from the first frame
+        actions = torch.zeros(2, 35)
+        ends = []
+        for step in range(int(cmd.library.length[0]) + 5):
+            _on_reference(env, ahead=0)  # held on the reference: no drift ends it early
+            actions[:, :29] = env.joint_targets_to_actions(cmd.reference_joint_pos_rad())
+            _, _, dones, extras = env.step(actions)
+            if dones.any():
+                ends.append((step, extras["time_outs"].clone(), env.env_state.terminated.clone()))
+                break
+        step, time_outs, _ = ends[0]
+        assert step == int(cmd.library.length[0]) - 2  # the step that reached the last frame
+        assert time_outs.all()
+    finally:
+        env.close()
+
+
+def test_adaptive_sampling_follows_failures(env) -> None:
+    cmd = env.command_gen
+    probs = cmd.sampling_probabilities()
+    torch.testing.assert_close(probs, torch.full_like(probs, 1 / probs.numel()))
+    saved = cmd.failures.clone()
+    try:
+        cmd.failures[:] = 0
+        cmd.failures[1] = 1.0
+        probs = cmd.sampling_probabilities()
+        assert probs[1] > probs[0] > probs[-1] if probs.numel() > 2 else probs[1] > probs[0]
+        torch.testing.assert_close(probs.sum(), torch.tensor(1.0, dtype=probs.dtype))
+    finally:
+        cmd.failures[:] = saved
+
+
+def test_failures_are_counted_in_the_bin_where_episodes_fell(wave_clip) -> None:
+    env = make_env(quiet(track_task((wave_clip,))), 4, num_threads=1)
+    try:
+        cmd = env.command_gen
+        assert cmd.failures.sum() == 0
+        actions = torch.zeros(4, 35)
+        actions[:, :29] = 3.0  # joint targets far off: the robots fall
+        for _ in range(150):
+            env.step(actions)
+        assert cmd.failures.sum() > 0
+        state = env.state_dict()["task_components"]["command_gen"]
+        assert torch.equal(state["failures"], cmd.failures)
+    finally:
+        env.close()
+
+
+def test_a_statue_fails_the_skill_measure(wave_clip) -> None:
+    """Holding the standing pose survives the gentle clip but does not track it."""
+    from rl.alone_eval import rollout_alone
+
+    env = make_env(quiet(track_task((wave_clip,))), 2, num_threads=1)
+    try:
+        stand = env.joint_targets_to_actions(env.motion.stand_rad.expand(2, 29))
+        result = rollout_alone(env, lambda obs: stand)
+    finally:
+        env.close()
+    metrics = result["task_metrics"]
+    assert metrics["statue_joint_error_rad"] > 0.02  # 2 joints of 29 waving 0.6 rad: 0.026
+    assert metrics["statue_ratio"] > 0.5  # a statue is (about) the statue
+    assert metrics["tracking_score"] > 1.0
+    assert not result["target_reached"]
+    assert set(metrics["per_reference"]) == {wave_clip}
+
+
+def test_references_reach_the_task_and_bad_ones_are_refused(wave_clip) -> None:
+    task = with_references(get_task("track"), (wave_clip,), "0:80")
+    assert task.commands.sources == (wave_clip,) and task.commands.frames == "0:80"
+    assert with_references(TRACK, (), "") is TRACK
+    with pytest.raises(ValueError, match="takes no --reference"):
+        with_references(get_task("stand"), (wave_clip,), "")
+    for text in ("0-600", "a:b", "5:5", "-1:3"):
+        with pytest.raises(ValueError, match="--reference-frames"):
+            parse_frames(text)
+    assert parse_frames("") is None and parse_frames("10:20") == (10, 20)
+
+
+def test_a_reference_shorter_than_a_second_is_refused(wave_clip) -> None:
+    with pytest.raises(ValueError, match="shorter than 1 s"):
+        make_env(quiet(track_task((wave_clip,), frames="0:40")), 1, num_threads=1)
+
+
+def test_dance_is_track_on_the_built_in_choreography() -> None:
+    dance = get_task("dance")
+    assert dance.commands.sources == ("builtin",)
+    assert {t.name for t in dance.rewards} == {t.name for t in TRACK.rewards}
+    assert dance.target.metric == "tracking_score" and math.isclose(dance.target.max_metric, 1.0)
