@@ -28,7 +28,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from a2cf_mb.demo_report import (
     A2CF,
@@ -67,8 +67,8 @@ from optimal_control.files import (
 from rl.run_folder import EVAL_FILE, METRICS_FILE, RunFolderLock, StaleLockWarning
 
 TASK = "dance"
-"""The demo's task: of the registered skills the one a CPU learns fastest (the baseline's policy
-alone reaches its target within a few M env steps, docs/results/skills_learn)."""
+"""The demo's task: the paper's dance, tracked (``track`` on the built-in 19 s choreography) and
+judged by a measure a statue fails (docs/results/track_learn measures it over seeds)."""
 RECIPE_FLAGS: tuple[str, ...] = (
     "--ppo-num-learning-epochs",
     "2",
@@ -90,11 +90,32 @@ the dance warm start on 3 of 3 seeds with the demo's update. With the demo's 400
 help is gone halfway: the second half shows the motion policy alone."""
 
 
+SEED_SPREAD_FILE = Path(__file__).resolve().parents[1] / "docs/results/track_learn/seed_spread.json"
+"""The baseline's skill metric over seeds, at env-step budgets, measured by the study of
+``docs/results/track_learn`` (its ``summarise.py`` writes it): what the demo's one-seed comparison
+is read against."""
+NUM_STEPS_PER_ENV = 24
+"""Steps per env per iteration of the demo's runs (the trainer's default)."""
+
+
+def seed_spread(env_steps: int) -> dict[str, Any] | None:
+    """The measured seed spread nearest ``env_steps`` (within 25 %), or None (no study here, or
+    none near the demo's budget)."""
+    if not SEED_SPREAD_FILE.is_file():
+        return None
+    rows = json.loads(SEED_SPREAD_FILE.read_text())["budgets"]
+    near = [r for r in rows if abs(r["env_steps"] - env_steps) <= 0.25 * env_steps]
+    if not near:
+        return None
+    best = min(near, key=lambda r: abs(r["env_steps"] - env_steps))
+    return {**best, "source": str(SEED_SPREAD_FILE.relative_to(SEED_SPREAD_FILE.parents[3]))}
+
+
 @dataclass(frozen=True)
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines of docs/results/skills_learn survived alone 0-81 % there), about 10 min for the whole demo on 2 cores (measured 8.2 min in a fresh clone) [-]
+    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines over seeds there: docs/results/track_learn/seed_spread.json), about 10 min for the whole demo on 2 cores (measured 8.2 min in a fresh clone) [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
     evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]
@@ -272,6 +293,7 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
             "episode_length_s": task.episode_length_s,
         },
         wall_time_s=time.monotonic() - start,
+        seed_spread=seed_spread(cfg.iterations * cfg.num_envs * NUM_STEPS_PER_ENV),
     )
     summary["figure"] = plot_curves(out, summary)
     atomic_write_json(out / SUMMARY_FILE, summary)

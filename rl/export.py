@@ -72,7 +72,7 @@ def command_parts(command_gen: Any, first_column: int, width: int) -> list[dict[
         parts.append(
             {
                 "name": block.name, "columns": [col, col + block.width], "unit": block.unit,
-                "compute": block.compute,
+                "compute": block.compute, "from_robot": block.from_robot,
             }
         )  # fmt: skip
         col += block.width

@@ -102,7 +102,7 @@ def whole_clip_task(task: TaskConfig) -> TaskConfig:
         raise ValueError(
             f"task '{task.name}' does not track clips (its command is "
             f"{type(task.commands).__name__}): whole-clip rollouts need a clip-tracking task such "
-            "as dance"
+            "as dance-joints"
         )
     lib = clip_library(task.commands.sources, task.commands.step_dt_s)
     frames = int(lib.length.max())

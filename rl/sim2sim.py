@@ -256,10 +256,13 @@ class _Robots:
                 mujoco.mj_objectVelocity(
                     self.model, data, mujoco.mjtObj.mjOBJ_XBODY, body, vel[i, k], 0
                 )
-        stack = lambda attr: torch.tensor(np.stack([getattr(d, attr)[ids] for d in self.datas]))  # noqa: E731
+        pose = {
+            attr: np.stack([getattr(d, attr)[ids] for d in self.datas])
+            for attr in ("xpos", "xquat")
+        }
         return {
-            "body_pos_w": stack("xpos").float().reshape(self.num_envs, len(ids), 3),
-            "body_quat_w": stack("xquat").float().reshape(self.num_envs, len(ids), 4),
+            "body_pos_w": torch.tensor(pose["xpos"]).float(),
+            "body_quat_w": torch.tensor(pose["xquat"]).float(),
             "body_lin_vel_w": torch.tensor(vel[..., 3:]).float(),
             "body_ang_vel_w": torch.tensor(vel[..., :3]).float(),
         }

@@ -271,7 +271,9 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
         )
     summary = OracleArtifact.read_summary(folder)
     eta0 = torch.tensor(summary.eta0, dtype=torch.float32)
-    if summary.task != task.name:
+    if _tracks_the_artifacts_motion(folder, task):
+        pass  # a tracking task on the artifact's own motion, whatever the artifact was solved as
+    elif summary.task != task.name:
         raise ValueError(
             f"--warmstart artifact {folder} is for task '{summary.task}', the training "
             f"task is '{task.name}': solve the oracle for '{task.name}'"
@@ -283,6 +285,37 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
     raise ValueError(
         f"--warmstart artifact {folder} has phases {list(summary.phase_names)}; the training "
         f"task '{task.name}' has phases {list(task.phase_names)}"
+    )
+
+
+def _tracks_the_artifacts_motion(folder: Path, task: TaskConfig) -> bool:
+    """Whether ``task`` tracks references (``commands.sources``) and one of them (after its
+    ``--reference-frames`` segment) is the motion the artifact in ``folder`` was solved on.
+
+    Raises:
+        ValueError: for a tracking task none of whose references is the artifact's motion (its
+            warm start would teach the help of another motion).
+    """
+    sources = getattr(task.commands, "sources", None)
+    if sources is None:
+        return False
+    from optimal_control.reference_sources import (
+        load_reference,
+        parse_frames,
+        reference_fingerprint,
+    )
+    from rl.tasks.track.library import load_track_reference
+
+    frames = parse_frames(getattr(task.commands, "frames", ""))
+    solved = reference_fingerprint(load_reference(folder))
+    trained = [reference_fingerprint(load_track_reference(s, frames)) for s in sources]
+    if solved in trained:
+        return True
+    segment = f" (frames {task.commands.frames})" if frames else ""
+    raise ValueError(
+        f"--warmstart artifact {folder} was solved on another motion than the task '{task.name}' "
+        f"tracks ({', '.join(sources)}{segment}): solve the oracle on the same reference "
+        f"(e.g. a2cf-mb solve-dance --clip FILE), or pass --reference {folder}"
     )
 
 

@@ -136,7 +136,7 @@ def test_skill_is_threshold_over_episode_error() -> None:
 
 
 def test_two_training_iterations_and_eval_with_task_metrics(tmp_path) -> None:
-    result = train(tiny_config(tmp_path, "a2cf", task="dance"), verbose=False)
+    result = train(tiny_config(tmp_path, "a2cf", task="dance-joints"), verbose=False)
     assert result.iterations_done == 2
     report = evaluate(result.run_dir, EvalConfig(num_envs=2, num_steps=10))
     metrics = report["task_metrics"]

@@ -252,6 +252,20 @@ def test_the_verdict_names_the_run_ahead_by_how_much_and_at_which_budget():
     assert level.startswith("Neither run is ahead") and "fell in every evaluation episode" in level
 
 
+def test_the_verdict_reads_a_difference_against_the_seed_spread():
+    summary = _summary(baseline_error=0.9, a2cf_error=0.4)
+    spread = {"metric": "skill_error_rad", "values": {"s0": 0.3, "s1": 0.9, "s2": 0.5},
+              "env_steps": 983040, "source": "docs/results/track_learn/seed_spread.json"}  # fmt: skip
+    summary["seed_spread"] = spread
+    assert "inside that spread, so it is noise between seeds" in verdict(summary)
+    report = render_report(summary, Path("/x/demo"))
+    assert "s0 0.300, s1 0.900, s2 0.500 at 983,040 env steps" in report
+    summary["seed_spread"] = {**spread, "values": {"s0": 0.30, "s1": 0.35}}
+    assert "larger than that spread" in verdict(summary)
+    summary["seed_spread"] = {**spread, "metric": "tracking_score"}  # another metric: not used
+    assert "spread" not in verdict(summary)
+
+
 def test_report_states_budget_flags_numbers_and_what_a_longer_run_gives():
     report = render_report(_summary(baseline_error=0.9, a2cf_error=0.4), Path("/x/demo"))
     for needle in ("## 1. The oracle", "## 2. Training", "## 3. The motion policies alone",
@@ -353,17 +367,18 @@ def test_tiny_demo_end_to_end(tmp_path, capsys):
         assert (out / run["run_dir"] / "policy.onnx").is_file()
         assert run["env_steps"] == 2 * 8 * 24 and run["iterations"] == 2
         assert 0.0 <= run["alone"]["survival_fraction"] <= 1.0
-        assert isinstance(run["alone"]["skill_error_rad"], float)
+        assert isinstance(run["alone"]["tracking_score"], float)
+        assert run["alone"]["task_metrics"]["statue_joint_error_rad"] > 0.0
         assert "survival_fraction" in run["sim2sim"]
         assert run["alone_during_training"]["evaluations"] == 1
         assert run["train_wall_time_s"] > 0 and run["eval_wall_time_s"] > 0
         assert (out / "logs" / f"train_{name}.log").is_file()
     assert summary["runs"][A2CF]["warmstart"]["env_steps"] > 0
-    assert summary["comparison"]["metric"] == "skill_error_rad"
+    assert summary["comparison"]["metric"] == "tracking_score"
     report = (out / "report.md").read_text()
     for needle in ("## 1. The oracle", "## 3. The motion policies alone", "sim2sim",
                    "| `baseline` |", "| `a2cf_warm` |", "--mode a2cf --warmstart OUT/oracle",
-                   "## 4. What this shows", "--iterations 1600"):  # fmt: skip
+                   "## 4. What this shows", "--iterations 1600", "(statue "):  # fmt: skip
         assert needle in report, needle
     assert (out / "demo_curves.png").stat().st_size > 0
 

@@ -158,7 +158,7 @@ def test_tasks_without_a_clip_reference_are_refused_by_name(clip):
 def test_the_reference_alone_falls_within_the_built_in_dance():
     """The notebook's point: the joint PD alone cannot keep the G1 up along the dance (it falls
     within ~2 s, as from the standing pose: docs/oracle.md)."""
-    env = build_env(get_task("dance"), cfg=dataclasses.replace(ROBOTS, num_envs=4))
+    env = build_env(get_task("dance-joints"), cfg=dataclasses.replace(ROBOTS, num_envs=4))
     try:
         rollout = rollout_reference(env, reference_motion, label="reference PD")
         clip_steps = env.max_episode_length

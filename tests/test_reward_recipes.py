@@ -18,7 +18,7 @@ from rl.registry import TASKS, get_task, make_env
 from rl.runner import rsl_rl_config
 from rl.train_config import ModelConfig, PPOConfig, TrainConfig
 
-PAPER_TABLES_THAT_PAY_FOR_FALLING = {"walk-paper", "dance-paper"}
+PAPER_TABLES_THAT_PAY_FOR_FALLING = {"walk-paper", "dance-paper", "track-paper"}
 """The paper's tables have no survival term; kept as variants, measured to pay for falls."""
 
 HOLD_STEPS = 300  # 6 s of holding the default pose at most

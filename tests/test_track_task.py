@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 import torch
 
+from optimal_control.reference_sources import parse_frames
 from rl.registry import get_task, make_env
 from rl.runner import with_references
 from rl.tasks.config import quiet
 from rl.tasks.track import TRACK, terms, track_task
-from rl.tasks.track.command import parse_frames
 from rl.tasks.track.terms import ANCHOR, yaw_quat
 
 
@@ -193,3 +193,19 @@ def test_dance_is_track_on_the_built_in_choreography() -> None:
     assert dance.commands.sources == ("builtin",)
     assert {t.name for t in dance.rewards} == {t.name for t in TRACK.rewards}
     assert dance.target.metric == "tracking_score" and math.isclose(dance.target.max_metric, 1.0)
+
+
+def test_a_warm_start_must_come_from_the_tracked_motion(wave_clip, tmp_path) -> None:
+    from optimal_control.oracle import OracleConfig, solve_reference_oracle
+    from optimal_control.reference_sources import load_reference
+    from rl.train_config import TrainConfig
+    from rl.warmstart import warmstart_eta0
+
+    cfg = OracleConfig(alphas=(1.0,), video=False, progress=False, out=str(tmp_path / "wave"))
+    _, folder = solve_reference_oracle("dance", load_reference(wave_clip), cfg, {})
+    train = TrainConfig(warmstart=str(folder))
+    eta0 = warmstart_eta0(train, track_task((wave_clip,)))  # task 'track', artifact 'dance'
+    assert eta0 is not None and eta0.shape == (1, 6)
+    assert warmstart_eta0(train, track_task((str(folder),))) is not None  # the artifact itself
+    with pytest.raises(ValueError, match="solved on another motion"):
+        warmstart_eta0(train, track_task((wave_clip,), frames="0:60"))  # a segment: not the same

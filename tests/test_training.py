@@ -332,16 +332,18 @@ def test_eval_video_frames_carry_a_tracking_tasks_reference() -> None:
 
     env = make_env(quiet(get_task("dance")), 2, num_threads=1)
     try:
+        env.command_gen.for_evaluation()  # from the first frame, as eval's video
+        env.reset_envs(torch.arange(2))
         frames = _VideoFrames()
         frames.record(env)
-        for _ in range(3):
+        for _ in range(60):  # the dance stands still for its first second
             env.step(torch.zeros(2, env.num_actions))
             frames.record(env)
         now = env.command_gen.reference_qpos()
     finally:
         env.close()
     ghost = frames.ghost_qpos()
-    assert ghost is not None and ghost.shape == (4, 36) == np.asarray(frames.qpos).shape
+    assert ghost is not None and ghost.shape == (61, 36) == np.asarray(frames.qpos).shape
     np.testing.assert_allclose(ghost[0], frames.qpos[0], atol=1e-9)
     np.testing.assert_array_equal(ghost[-1], now[0])
     assert np.abs(ghost[-1] - ghost[0]).max() > 1e-4  # the reference moved on

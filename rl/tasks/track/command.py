@@ -28,22 +28,6 @@ from rl.tasks.track.terms import ANCHOR, COMMAND_DIM, TRACKED_BODIES, anchor_com
 from robots import g1
 
 
-def parse_frames(text: str) -> tuple[int, int] | None:
-    """``"A:B"`` -> (A, B) (source frames A inclusive to B exclusive); ``""`` -> None."""
-    if not text:
-        return None
-    parts = text.split(":")
-    try:
-        a, b = (int(p) for p in parts)
-    except ValueError:
-        raise ValueError(
-            f"--reference-frames '{text}' is not A:B with integer frames (e.g. 0:600)"
-        ) from None
-    if not 0 <= a < b:
-        raise ValueError(f"--reference-frames '{text}' needs 0 <= A < B (e.g. 0:600)")
-    return a, b
-
-
 @dataclass(frozen=True)
 class MotionCommandConfig:
     """The tracking command: references, segment, and the adaptive start sampling."""
@@ -60,7 +44,10 @@ class MotionCommandConfig:
     failure_ema: float = 0.001  # per-step weight of new failures in each bin's moving count [-]
 
     def __post_init__(self) -> None:
-        parse_frames(self.frames)
+        if self.frames:  # checked here; Pinocchio is imported only where a segment is given
+            from optimal_control.reference_sources import parse_frames
+
+            parse_frames(self.frames)
         if not 0.0 < self.uniform_share <= 1.0 or not 0.0 < self.failure_ema <= 1.0:
             raise ValueError(
                 f"tracking uniform_share and failure_ema must be in (0, 1], got "
@@ -107,6 +94,8 @@ class MotionCommand(ClipTrackingCommand):
         self._targets: dict[str, torch.Tensor] = {}
 
     def _load_library(self, cfg: Any) -> Any:
+        from optimal_control.reference_sources import parse_frames
+
         self.motion = motion_library(cfg.sources, parse_frames(cfg.frames), cfg.step_dt_s)
         return self.motion.clips
 
@@ -223,11 +212,13 @@ class MotionCommand(ClipTrackingCommand):
             CommandColumns(
                 "anchor_pos_b", 3, "m",
                 f"position of the reference's torso_link {frame}, in the robot's torso_link frame",
+                from_robot=True,
             ),
             CommandColumns(
                 "anchor_rot_b", 6, "-",
                 "orientation of the reference's torso_link relative to the robot's: first two "
                 f"columns of the rotation matrix, column-major {frame}",
+                from_robot=True,
             ),
         )  # fmt: skip
 
@@ -277,4 +268,4 @@ def bin_table(command: MotionCommand) -> np.ndarray:
     )
 
 
-__all__ = ["TRACKED_BODIES", "MotionCommand", "MotionCommandConfig", "bin_table", "parse_frames"]
+__all__ = ["TRACKED_BODIES", "MotionCommand", "MotionCommandConfig", "bin_table"]

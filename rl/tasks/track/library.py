@@ -19,13 +19,10 @@ import torch
 from rl.tasks.dance.clips import BUILTIN_CLIP, ClipLibrary, _builtin_reference
 from rl.tasks.track.terms import TRACKED_BODIES
 
-MIN_REFERENCE_S = 1.0
-"""Shortest reference (after the segment) a tracking task takes [s]."""
-
 
 def load_track_reference(source: str, frames: tuple[int, int] | None):
     """The :class:`optimal_control.reference.Reference` of one source (and segment)."""
-    from optimal_control.reference_sources import load_reference
+    from optimal_control.reference_sources import MIN_DURATION_S, load_reference
 
     if source == BUILTIN_CLIP:
         ref = _builtin_reference()
@@ -39,10 +36,10 @@ def load_track_reference(source: str, frames: tuple[int, int] | None):
             ref = ref.slice(a, b)
     else:
         ref = load_reference(source, frames=frames, name=Path(source).stem)
-    if ref.duration_s < MIN_REFERENCE_S:
+    if ref.duration_s < MIN_DURATION_S:
         raise ValueError(
             f"reference '{source}' lasts {ref.duration_s:.2f} s, shorter than "
-            f"{MIN_REFERENCE_S:g} s: give a longer clip or a wider --reference-frames segment"
+            f"{MIN_DURATION_S:g} s: give a longer clip or a wider --reference-frames segment"
         )
     return ref
 
