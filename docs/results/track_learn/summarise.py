@@ -39,7 +39,11 @@ def summarise_run(run: Path) -> dict:
     """One run's curve, first target held twice, and confirmations."""
     curve = [_row(r) for r in _rows(run / "evals.jsonl")]
     held = next(
-        (b for a, b in zip(curve, curve[1:]) if a["target_reached"] and b["target_reached"]),
+        (
+            b
+            for a, b in zip(curve[:-1], curve[1:], strict=True)
+            if a["target_reached"] and b["target_reached"]
+        ),
         None,
     )
     confirmations = [
@@ -64,7 +68,9 @@ def seed_spread(runs: list[dict]) -> list[dict]:
             "iteration": it,
             "env_steps": by_it[0][it]["env_steps"],
             "metric": "tracking_score",
-            "values": {run["run"]: b[it]["tracking_score"] for run, b in zip(runs, by_it)},
+            "values": {
+                run["run"]: b[it]["tracking_score"] for run, b in zip(runs, by_it, strict=True)
+            },
         }
         for it in common
     ]
