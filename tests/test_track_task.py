@@ -209,3 +209,40 @@ def test_a_warm_start_must_come_from_the_tracked_motion(wave_clip, tmp_path) -> 
     assert warmstart_eta0(train, track_task((str(folder),))) is not None  # the artifact itself
     with pytest.raises(ValueError, match="solved on another motion"):
         warmstart_eta0(train, track_task((wave_clip,), frames="0:60"))  # a segment: not the same
+
+
+def test_cli_trains_evaluates_and_exports_a_csv_segment(tmp_path, g1_pin, capsys) -> None:
+    """``train --task track --reference CLIP.csv --reference-frames A:B``, then ``eval``; a bad
+    reference gets one line naming it, before any run folder is made."""
+    import json
+
+    from a2cf_mb.cli import main
+
+    t = np.arange(90) / 30.0  # 3 s at 30 fps, the LAFAN1 CSV layout (Pinocchio's q)
+    rows = np.tile(g1_pin.q_stand, (t.size, 1))
+    rows[:, 7 + 15] += 0.5 * np.sin(2 * np.pi * 0.5 * t)  # left shoulder pitch
+    csv = tmp_path / "wave.csv"
+    np.savetxt(csv, rows, delimiter=",")
+    common = ["--num-envs", "4", "--num-steps-per-env", "8", "--iterations", "1",
+              "--eval-interval", "0", "--out", str(tmp_path / "runs")]  # fmt: skip
+    assert main(["train", "--task", "track", "--reference", str(csv), "--reference-frames",
+                 "0:60", "--run-name", "wave", *common]) == 0  # fmt: skip
+    run = tmp_path / "runs" / "wave"
+    assert (run / "policy.onnx").is_file()
+    saved = json.loads((run / "config.json").read_text())["train"]
+    assert saved["reference"] == [str(csv)] and saved["reference_frames"] == "0:60"
+    assert main(["eval", str(run), "--num-envs", "2"]) == 0
+    metrics = json.loads((run / "eval.json").read_text())["task_metrics"]
+    assert set(metrics["per_reference"]) == {str(csv)}
+    assert metrics["statue_joint_error_rad"] > 0.0 and "tracking_score" in metrics
+    capsys.readouterr()
+    bad = np.c_[rows[:, :7], np.degrees(rows[:, 7:])]
+    np.savetxt(tmp_path / "degrees.csv", bad, delimiter=",")
+    for reference, needle in ((tmp_path / "missing.csv", "does not exist"),
+                              (tmp_path / "degrees.csv", "degrees")):  # fmt: skip
+        assert main(["train", "--task", "track", "--reference", str(reference),
+                     "--run-name", "bad", *common]) == 2  # fmt: skip
+        err = capsys.readouterr().err
+        assert needle in err and str(reference) in err and "Traceback" not in err
+        assert len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "runs" / "bad").exists()
