@@ -37,6 +37,8 @@ class TrackingSkillConfig:
 class TrackingSkill(SkillMeasure):
     """Moving window of episode tracking errors (see :class:`TrackingSkillConfig`)."""
 
+    log_key = "Skill/dance_joint_error_rad"  # the window's mean in the training log
+
     def __init__(self, cfg: TrackingSkillConfig, max_episode_length: int) -> None:
         self.cfg = cfg
         self.max_episode_length = max_episode_length
@@ -50,9 +52,13 @@ class TrackingSkill(SkillMeasure):
         state: EnvState,
     ) -> None:
         """Push the error of each counted finished episode."""
-        err = joint_error_mean_abs(state)[env_ids]
+        err = self.joint_errors(state)[env_ids]
         err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
         self.window.push(err[self.counted(time_outs, lived_steps)])
+
+    def joint_errors(self, state: EnvState) -> torch.Tensor:
+        """Mean absolute joint error of every env's last step (N,) [rad], against its command."""
+        return joint_error_mean_abs(state)
 
     def mean_error_rad(self) -> float:
         """Mean error of the window [rad] (inf before any counted episode)."""
@@ -65,7 +71,7 @@ class TrackingSkill(SkillMeasure):
 
     def log(self) -> dict[str, float]:
         """The window's mean episode-end joint error."""
-        return {"Skill/dance_joint_error_rad": self.mean_error_rad()} if self.window.count else {}
+        return {self.log_key: self.mean_error_rad()} if self.window.count else {}
 
     def state_dict(self) -> dict[str, Any]:
         """The window."""

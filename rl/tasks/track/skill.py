@@ -24,22 +24,12 @@ class MotionSkillConfig(TrackingSkillConfig):
 class MotionSkill(TrackingSkill):
     """Moving window of episode-end joint errors against the tracking targets."""
 
+    log_key = "Skill/track_joint_error_rad"
+
     def counted(self, time_outs: torch.Tensor, lived_steps: torch.Tensor) -> torch.Tensor:
         """Every finished episode (a time-out is the end of its reference)."""
         return torch.ones_like(time_outs)
 
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Push the error of each finished episode (its last step's, a fall's fixed charge)."""
-        err = joint_error_mean_abs(state)[env_ids]
-        err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
-        self.window.push(err)
-
-    def log(self) -> dict[str, float]:
-        """The window's mean episode-end joint error."""
-        return {"Skill/track_joint_error_rad": self.mean_error_rad()} if self.window.count else {}
+    def joint_errors(self, state: EnvState) -> torch.Tensor:
+        """Mean absolute joint error (N,) [rad] against the reference frame just targeted."""
+        return joint_error_mean_abs(state)
