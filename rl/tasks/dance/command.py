@@ -37,6 +37,8 @@ class ClipTrackingConfig:
 class ClipTrackingCommand(Command):
     """Per env: clip, start frame and steps since the reset; puts reset robots on their frame."""
 
+    log_key = "Dance/joint_error_rad"  # the per-step mean joint error in the training log
+
     def __init__(self, cfg: ClipTrackingConfig, num_envs: int, generator: torch.Generator) -> None:
         self.cfg = cfg
         self.generator = generator
@@ -171,7 +173,7 @@ class ClipTrackingCommand(Command):
         """Mean absolute joint tracking error of the steps since the last log [rad]."""
         if not self._error_count:
             return {}
-        out = {"Dance/joint_error_rad": self._error_sum / self._error_count}
+        out = {self.log_key: self._error_sum / self._error_count}
         self._error_sum, self._error_count = 0.0, 0
         return out
 

@@ -65,6 +65,8 @@ class MotionCommand(ClipTrackingCommand):
     """Per env: reference, start frame, steps since the reset (the clip-tracking command's
     bookkeeping, reset poses and reference hooks), with the tracking layout and targets."""
 
+    log_key = "Track/joint_error_rad"
+
     def __init__(self, cfg: MotionCommandConfig, num_envs: int, generator: torch.Generator) -> None:
         super().__init__(cfg, num_envs, generator)
         dev, lib = self.device, self.motion
@@ -225,14 +227,6 @@ class MotionCommand(ClipTrackingCommand):
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
         return self._joint[self.frame(ahead=1), : g1.NUM_JOINTS].clone()
-
-    def log(self) -> dict[str, float]:
-        """Mean absolute joint tracking error of the steps since the last log [rad]."""
-        if not self._error_count:
-            return {}
-        out = {"Track/joint_error_rad": self._error_sum / self._error_count}
-        self._error_sum, self._error_count = 0.0, 0
-        return out
 
     def state_dict(self) -> dict[str, Any]:
         """Per-env references and frames, the failure counts and the last targets."""
