@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import typing
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -13,6 +14,25 @@ from rl.assist import DEFAULT_RANDOM_MASK_PROB
 from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
 from rl.warmstart import WarmStartConfig
+
+
+def check_range(
+    value: float, flag: str, low: float, high: float = float("inf"), *, low_open: bool = False
+) -> None:
+    """Refuse ``value`` (of ``flag``) outside ``[low, high]`` (``(low, high]`` when
+    ``low_open``), NaN included, in one line naming the flag and the range."""
+    above = low < value if low_open else low <= value
+    if not (above and value <= high):
+        if high == float("inf"):
+            span = f"{'>' if low_open else '>='} {low:g}"
+        else:
+            span = f"in {'(' if low_open else '['}{low:g}, {high:g}]"
+        raise ValueError(f"{flag} must be {span}, got {value}")
+
+
+MAX_ROLLOUT_TRANSITIONS = 2**24
+"""Most transitions (envs x steps per env) one iteration may collect: a typical GPU run collects
+4096 x 24 = 98,304; each transition stores about 3 kB of observations [-]."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +57,23 @@ class PPOConfig:
     kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" (the motion actions') or "all" (the joint action, rsl-rl's; the warm-started assist head then held the dance learning rate 3.4x lower) [-]
     assist_init_noise_std: float = 0.3  # initial std of the raw assist actions (before tanh); the paper's 1.0 is a random push of ~0.6 of the bound redrawn every step [-]
 
+    def __post_init__(self) -> None:
+        """Bound every field where it is declared (a saved config is checked on load too)."""
+        check_range(self.learning_rate, "--ppo-learning-rate", 0.0, 1.0, low_open=True)
+        if self.num_learning_epochs is not None:
+            check_range(self.num_learning_epochs, "--ppo-num-learning-epochs", 1, 1000)
+        check_range(self.num_mini_batches, "--ppo-num-mini-batches", 1)
+        check_range(self.clip_param, "--ppo-clip-param", 0.0, 1.0, low_open=True)
+        if self.gamma is not None:
+            check_range(self.gamma, "--ppo-gamma", 0.0, 1.0, low_open=True)
+        check_range(self.lam, "--ppo-lam", 0.0, 1.0)
+        check_range(self.value_loss_coef, "--ppo-value-loss-coef", 0.0)
+        check_range(self.entropy_coef, "--ppo-entropy-coef", 0.0)
+        check_range(self.max_grad_norm, "--ppo-max-grad-norm", 0.0, low_open=True)
+        check_range(self.desired_kl, "--ppo-desired-kl", 0.0, low_open=True)
+        check_range(self.init_noise_std, "--ppo-init-noise-std", 0.0, low_open=True)
+        check_range(self.assist_init_noise_std, "--ppo-assist-init-noise-std", 0.0, low_open=True)
+
 
 @dataclass(frozen=True)
 class ModelConfig:
@@ -54,6 +91,18 @@ class ModelConfig:
     vae_learning_epochs: int | None = (
         None  # encoder-update passes over each rollout; 0 = PPO's epochs; None: the task's (TaskConfig.vae_learning_epochs) [-]
     )
+
+    def __post_init__(self) -> None:
+        """Bound every numeric field where it is declared."""
+        for name in ("motion", "assist", "critic", "encoder"):
+            for width in getattr(self, f"{name}_hidden_dims"):
+                check_range(width, f"--model-{name}-hidden-dims", 1, 100_000)
+        check_range(self.latent_dim, "--model-latent-dim", 1, 100_000)
+        check_range(self.vae_learning_rate, "--model-vae-learning-rate", 0.0, 1.0, low_open=True)
+        check_range(self.vae_kl_weight, "--model-vae-kl-weight", 0.0)
+        check_range(self.vae_velocity_weight, "--model-vae-velocity-weight", 0.0)
+        if self.vae_learning_epochs is not None:
+            check_range(self.vae_learning_epochs, "--model-vae-learning-epochs", 0, 1000)
 
 
 @dataclass(frozen=True)
@@ -107,7 +156,11 @@ class TrainConfig:
             )
         for name in ("iterations", "num_steps_per_env", "save_interval"):
             if getattr(self, name) <= 0:
-                raise ValueError(f"train config '{name}' must be > 0, got {getattr(self, name)}")
+                raise ValueError(
+                    f"--{name.replace('_', '-')} must be > 0, got {getattr(self, name)}"
+                )
+        if not (self.device == "cpu" or re.fullmatch(r"cuda(:\d+)?", self.device)):
+            raise ValueError(f"--device must be cpu, cuda or cuda:N, got '{self.device}'")
         if self.ppo.kl_actions not in ("motion", "all"):
             raise ValueError(
                 f"--ppo-kl-actions must be 'motion' or 'all', got '{self.ppo.kl_actions}'"
@@ -128,22 +181,18 @@ class TrainConfig:
                 "during training: set --eval-interval > 0, or --curriculum-skill-measure alone "
                 "or helped"
             )
-        ppo, vae_epochs = self.ppo, self.model.vae_learning_epochs
-        if ppo.gamma is not None and not 0.0 < ppo.gamma <= 1.0:
-            raise ValueError(f"--ppo-gamma must be in (0, 1], got {ppo.gamma}")
-        if ppo.num_learning_epochs is not None and ppo.num_learning_epochs < 1:
-            raise ValueError(
-                f"--ppo-num-learning-epochs must be >= 1, got {ppo.num_learning_epochs}"
-            )
-        if vae_epochs is not None and vae_epochs < 0:
-            raise ValueError(
-                f"--model-vae-learning-epochs must be >= 0 (0: PPO's epochs), got {vae_epochs}"
-            )
         batch = self.env.num_envs * self.num_steps_per_env
+        if batch > MAX_ROLLOUT_TRANSITIONS:
+            raise ValueError(
+                f"--env-num-envs * --num-steps-per-env = {batch:,} transitions per iteration is "
+                f"more than {MAX_ROLLOUT_TRANSITIONS:,} (the rollout storage alone would need "
+                "tens of GB): give fewer envs or a shorter rollout"
+            )
         if batch < self.ppo.num_mini_batches:
             raise ValueError(
-                f"env.num_envs * num_steps_per_env = {batch} is smaller than "
-                f"ppo.num_mini_batches = {self.ppo.num_mini_batches}"
+                f"--env-num-envs * --num-steps-per-env = {batch} is smaller than "
+                f"--ppo-num-mini-batches = {self.ppo.num_mini_batches}: give fewer mini-batches "
+                "or a larger rollout"
             )
 
     @property
@@ -161,21 +210,26 @@ class TrainConfig:
         return _build(cls, data)
 
 
-def _build(kind: type, values: dict[str, Any]) -> Any:
-    """A dataclass from a JSON dictionary, recursing into nested dataclass fields."""
+def _build(kind: type, values: dict[str, Any], where: str = "train") -> Any:
+    """A dataclass from a JSON dictionary, recursing into nested dataclass fields; ``where``: the
+    dotted path of ``values`` in the saved config (named in the errors)."""
     if not isinstance(values, dict):
-        raise ValueError(f"{kind.__name__} must be a JSON object, got {type(values).__name__}")
+        raise ValueError(f"{where} must be a JSON object, got {type(values).__name__}")
     hints = typing.get_type_hints(kind)
     names = {f.name for f in dataclasses.fields(kind)}
     unknown = sorted(set(values) - names)
     if unknown:
-        raise ValueError(f"{kind.__name__} has no field {unknown}")
+        fields = ", ".join(f"{where}.{name}" for name in unknown)
+        raise ValueError(f"unknown field{'s' * (len(unknown) > 1)} {fields} ({kind.__name__})")
     kwargs: dict[str, Any] = {}
     for name, value in values.items():
         hint = hints[name]
         if dataclasses.is_dataclass(hint):
-            value = _build(hint, value)
+            value = _build(hint, value, f"{where}.{name}")
         elif typing.get_origin(hint) is tuple and isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value
-    return kind(**kwargs)
+    try:
+        return kind(**kwargs)
+    except TypeError as err:  # a value of the wrong type, compared in a check
+        raise ValueError(f"{where}: a field has a value of the wrong type ({err})") from err
