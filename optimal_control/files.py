@@ -78,6 +78,12 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        if err.filename != str(tmp) or not err.strerror:
+            raise
+        # The temp name means nothing to the user: name the file they asked for.
+        raise type(err)(err.errno, f"{err.strerror} (writing it)", str(path)) from err
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -231,6 +237,24 @@ def _leftovers(target: Path, tag: str) -> list[tuple[Path, int]]:
             if pid is not None and not process_alive(pid):
                 out.append((entry, pid))
     return out
+
+
+def remove_stale_temp_files(folder: str | Path) -> list[Path]:
+    """Delete the temporary files (``.<name>.tmp-<pid>``) that writers killed during
+    :func:`atomic_write_bytes` left in ``folder``: those whose process no longer runs. Returns
+    the removed paths (a live writer's file is kept)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    removed = []
+    for entry in folder.iterdir():
+        if not entry.name.startswith(".") or _TMP_TAG not in entry.name or not entry.is_file():
+            continue
+        pid = _pid_of(entry.name, _TMP_TAG)
+        if pid is not None and not process_alive(pid):
+            entry.unlink(missing_ok=True)
+            removed.append(entry)
+    return removed
 
 
 def recover_folder(target: str | Path) -> None:
