@@ -14,7 +14,6 @@ force (assistance switched off, 0.1 N by default), final tracking error with ass
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,15 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
-from rl.run_folder import CONFIG_FILE, EVAL_FILE, EVENTS_GLOB, METRICS_FILE
+from rl.run_folder import (
+    CONFIG_FILE,
+    EVAL_FILE,
+    EVENTS_GLOB,
+    METRICS_FILE,
+    DamagedRunFileError,
+    read_config_file,
+    read_run_json,
+)
 from robots.mujoco_model import MujocoModelConfig
 
 TRACKING_TERMS = ("track_lin_vel_xy", "track_ang_vel_z")
@@ -73,8 +80,15 @@ def load_run(run_dir: str | Path) -> dict[str, Any]:
             raise FileNotFoundError(
                 f"{path} not found: '{run_dir}' is not a finished run folder of `a2cf-mb train`"
             )
-    config = json.loads(config_path.read_text())
-    metrics = json.loads(metrics_path.read_text())
+    config = read_config_file(run_dir, sections=("train", "task", "env"))
+    metrics = read_run_json(
+        metrics_path, "the run's metrics", f"write it again with `a2cf-mb train --resume {run_dir}`"
+    )
+    if not isinstance(metrics, dict) or not isinstance(metrics.get("iterations"), list):
+        raise DamagedRunFileError(
+            f"{metrics_path} has no 'iterations' list: write it again with `a2cf-mb train "
+            f"--resume {run_dir}`"
+        )
     rows = metrics["iterations"]
     if not rows:
         raise ValueError(f"{metrics_path} has no iterations: nothing to compare")
@@ -113,7 +127,11 @@ def load_run(run_dir: str | Path) -> dict[str, Any]:
         "assist_enabled": assist,
         "mean_step_reward": np.array([r.get("mean_step_reward") or 0.0 for r in rows], dtype=float),
         "tracking": tracking,
-        "eval": json.loads(eval_path.read_text()) if eval_path.is_file() else None,
+        "eval": read_run_json(
+            eval_path, "the result of `a2cf-mb eval`", f"run `a2cf-mb eval {run_dir}` again"
+        )
+        if eval_path.is_file()
+        else None,
     }
 
 

@@ -22,7 +22,15 @@ from rl.agents.models import ASSIST_ACTION_DIM
 from rl.agents.modes import MotionOnlyEnv, get_mode
 from rl.alone_eval import AloneEvalConfig, rollout_alone
 from rl.envs.vec_env import G1VecEnv
-from rl.run_folder import CHECKPOINT_EVALS_LOG, EVAL_FILE, EVALS_DIR
+from rl.run_folder import (
+    CHECKPOINT_EVALS_LOG,
+    EVAL_FILE,
+    EVALS_DIR,
+    REEXPORT_ADVICE,
+    load_checkpoint,
+    newest_readable_checkpoint,
+    read_run_jsonl,
+)
 from rl.runner import (
     CHECKPOINT_DIR,
     LAST_CHECKPOINT,
@@ -72,9 +80,16 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
 
     run_dir = Path(run_dir)
     train_cfg = load_run_config(run_dir)
-    env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
-    env = G1VecEnv(env_cfg, resolve_task(train_cfg))
+    # The policy's files are checked before the env is built: a damaged one is one line at once.
+    checkpoint = newest_readable_checkpoint(run_dir, "a2cf-mb eval", "evaluating")
+    if checkpoint is None:
+        raise FileNotFoundError(
+            f"{run_dir} has no checkpoint ({CHECKPOINT_DIR}/{LAST_CHECKPOINT}): its training "
+            f"stopped during its first iteration; continue it with `a2cf-mb train --resume "
+            f"{run_dir}`, or delete the folder"
+        )
     if cfg.use_onnx:
+        _require_exported_policy(run_dir, train_cfg.export_onnx)
         onnx_policy = OnnxMotionPolicy(run_dir / POLICY_FILE)
 
         def policy(obs: Any) -> torch.Tensor:
@@ -82,10 +97,10 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
                 onnx_policy(obs["policy"].cpu().numpy(), obs["history"].cpu().numpy())
             )
 
-    else:
-        torch_policy = checkpoint_motion_policy(
-            train_cfg, env, run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT
-        )
+    env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
+    env = G1VecEnv(env_cfg, resolve_task(train_cfg))
+    if not cfg.use_onnx:
+        torch_policy = checkpoint_motion_policy(train_cfg, env, checkpoint)
 
         def policy(obs: Any) -> torch.Tensor:
             return torch_policy(obs["policy"], obs["history"])
@@ -106,6 +121,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         "task": train_cfg.task,
         "mode": train_cfg.mode,
         "policy": "onnx" if cfg.use_onnx else "checkpoint",
+        **({} if cfg.use_onnx else {"checkpoint": checkpoint.name}),
         **alone,
     }
     if cfg.sim2sim:
@@ -135,13 +151,30 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     return result
 
 
+def _require_exported_policy(run_dir: Path, exported: bool) -> None:
+    """Refuse a run without ``policy.onnx`` with what to do (a run that is not exported, or not
+    finished, still has checkpoints to evaluate)."""
+    if (run_dir / POLICY_FILE).is_file():
+        return
+    if not exported:
+        raise FileNotFoundError(
+            f"{run_dir} was trained with --no-export-onnx (no {POLICY_FILE}): evaluate its last "
+            f"checkpoint with `a2cf-mb eval --no-use-onnx {run_dir}`"
+        )
+    raise FileNotFoundError(
+        f"exported policy {run_dir / POLICY_FILE} not found (the run has not finished, or the file "
+        f"was removed): {REEXPORT_ADVICE.format(run_dir=run_dir)}"
+    )
+
+
 def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
-    """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``."""
+    """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``
+    (a damaged checkpoint: :class:`~rl.run_folder.DamagedRunFileError` naming it)."""
+    state = load_checkpoint(path)
     mode = get_mode(train_cfg.mode)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
     with contextlib.redirect_stdout(io.StringIO()):
         runner = OnPolicyRunner(learner_env, rsl_rl_config(train_cfg, mode), log_dir=None)
-    state = torch.load(path, weights_only=False)
     runner.alg.load(state, {"actor": True}, strict=True)
     return runner.alg.get_policy().motion_policy().eval()
 
@@ -234,17 +267,22 @@ def evaluate_checkpoints(
     train_cfg = load_run_config(run_dir)
     task = resolve_task(train_cfg)
     path = run_dir / CHECKPOINT_EVALS_LOG
-    rows = [json.loads(line) for line in path.read_text().splitlines()] if path.is_file() else []
+    advice = "delete it to evaluate every checkpoint again, or restore it from a backup"
+    rows = read_run_jsonl(path, "eval-curve's rows", advice) if path.is_file() else []
     rows = [r for r in rows if r.get("num_envs") == cfg.num_envs and r.get("seed") == cfg.seed]
     done = {r["iteration"] for r in rows}
     checkpoints = sorted(
-        (int(p.stem.split("_")[1]), p) for p in (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
+        (int(p.stem.split("_")[1]), p)
+        for p in (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
+        if p.stem.split("_")[1].isdigit()
     )
     if not checkpoints:
         raise ValueError(f"{run_dir} has no kept checkpoint (checkpoints/model_<k>.pt) to evaluate")
     steps_per_iteration = train_cfg.env.num_envs * train_cfg.num_steps_per_env
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
     todo = [(k, p) for k, p in checkpoints if k not in done and k % every_iterations == 0]
+    for _, ckpt in todo:  # a damaged checkpoint is one line before any rollout
+        load_checkpoint(ckpt, advice="restore it from a backup, or delete it (eval-curve skips it)")
     for i, (k, ckpt) in enumerate(todo):
         env = G1VecEnv(env_cfg, task)
         try:

@@ -23,6 +23,7 @@ import torch
 
 from optimal_control.files import atomic_write_json
 from rl.agents.models import A2CFActor, MotionPolicy
+from rl.run_folder import REEXPORT_ADVICE, DamagedRunFileError, short_reason
 
 ONNX_OPSET = 18
 """ONNX opset used for the export (rsl-rl's choice)."""
@@ -219,7 +220,13 @@ class OnnxMotionPolicy:
             raise FileNotFoundError(
                 f"exported policy {path} not found: train with --export-onnx first"
             )
-        self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        try:
+            self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        except Exception as err:  # onnxruntime's own types (InvalidProtobuf, Fail, ...)
+            raise DamagedRunFileError(
+                f"exported policy {path} cannot be loaded ({short_reason(err)}): "
+                f"{REEXPORT_ADVICE.format(run_dir=path.parent)}"
+            ) from err
 
     def __call__(self, obs: np.ndarray, history: np.ndarray) -> np.ndarray:
         """Deterministic motion actions (B, 29) for float32 inputs (B, P) and (B, H * P)."""

@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path, PurePath
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from optimal_control.files import process_alive
+from optimal_control.files import process_alive, remove_stale_temp_files
 
 if TYPE_CHECKING:
     from rl.train_config import TrainConfig
@@ -286,41 +286,156 @@ FIELDS_ADDED_LATER: dict[tuple[str, str], Any] = {
 config without the field is read with it (a resume continues as it began)."""
 
 
-def load_run_config(run_dir: str | Path) -> TrainConfig:
-    """The TrainConfig saved in a run folder (clear errors for a missing or broken file)."""
-    from rl.train_config import TrainConfig
+class DamagedRunFileError(ValueError):
+    """A file of a run folder is truncated, empty or not what it should hold; the message names
+    the file and what to do (the CLI prints it in one line, exit code 2)."""
 
+
+def short_reason(err: BaseException) -> str:
+    """The first sentence of an exception's message, short enough for a one-line error."""
+    lines = str(err).strip().splitlines()
+    text = lines[0].split(". ", 1)[0] if lines else type(err).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def read_run_json(path: Path, what: str, advice: str) -> Any:
+    """The JSON value of run-folder file ``path`` (``what`` it holds, for the message). A file
+    that is not valid JSON raises :class:`DamagedRunFileError` naming it and ``advice`` (what to
+    do); a missing one the plain FileNotFoundError (callers say what its absence means)."""
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:  # JSONDecodeError is a ValueError
+        raise DamagedRunFileError(
+            f"{path} ({what}) is damaged, not valid JSON ({short_reason(err)}): {advice}"
+        ) from err
+
+
+def read_run_jsonl(path: Path, what: str, advice: str) -> list[Any]:
+    """The rows of a JSON-lines run-folder file (blank lines skipped); a damaged line raises
+    :class:`DamagedRunFileError` naming the file, the line and ``advice``."""
+    try:
+        lines = path.read_text().splitlines()
+    except UnicodeDecodeError as err:
+        raise DamagedRunFileError(
+            f"{path} ({what}) is damaged ({short_reason(err)}): {advice}"
+        ) from err
+    rows = []
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            rows.append(json.loads(line))
+        except ValueError as err:
+            raise DamagedRunFileError(
+                f"{path} ({what}) is damaged at line {number} ({short_reason(err)}): {advice}"
+            ) from err
+    return rows
+
+
+CHECKPOINT_ADVICE = (
+    "restore it from a backup, or delete it (a resume and `eval --no-use-onnx` then use the "
+    "newest readable checkpoint, `eval-curve` skips it)"
+)
+"""What to do about a damaged checkpoint (the messages of :func:`load_checkpoint`)."""
+
+
+def load_checkpoint(path: Path, map_location: Any = "cpu", advice: str = CHECKPOINT_ADVICE) -> dict:
+    """The state saved in checkpoint ``path`` (``torch.load``). A file torch cannot read (a
+    truncated zip, a foreign pickle, an empty file) or that is not a run checkpoint raises
+    :class:`DamagedRunFileError` naming it and ``advice``; a missing one FileNotFoundError."""
+    import torch
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(errno.ENOENT, "No such checkpoint", str(path))
+    try:
+        state = torch.load(path, weights_only=False, map_location=map_location)
+    except Exception as err:  # any unreadable file: torch raises RuntimeError, EOFError, ...
+        raise DamagedRunFileError(
+            f"checkpoint {path} cannot be read ({type(err).__name__}: {short_reason(err)}); it is "
+            f"truncated or not a checkpoint: {advice}"
+        ) from err
+    if not isinstance(state, dict) or "completed_iterations" not in state:
+        raise DamagedRunFileError(
+            f"{path} is not a checkpoint of `a2cf-mb train` (no completed_iterations): {advice}"
+        )
+    return state
+
+
+REEXPORT_ADVICE = (
+    "export it again from the last checkpoint with `a2cf-mb train --resume {run_dir}` (a finished "
+    "run only exports), or evaluate the checkpoint with `a2cf-mb eval --no-use-onnx {run_dir}`"
+)
+"""What to do about a damaged or missing ``policy.onnx`` (``{run_dir}``: the run folder)."""
+
+CONFIG_ADVICE = "restore it from a backup, or start a new run"
+"""What to do about a damaged ``config.json``."""
+
+
+def read_config_file(run_dir: str | Path, sections: tuple[str, ...] = ("train",)) -> dict:
+    """The saved ``config.json`` of a run folder, every section (``train``, ``task``, ``env``,
+    ``rsl_rl``, ``eta0``); one clear error naming the file for a missing file, invalid JSON or
+    a missing one of ``sections``."""
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(
             f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
         )
     try:
-        data = json.loads(path.read_text())["train"]
+        saved = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:  # JSONDecodeError is a ValueError
+        raise DamagedRunFileError(
+            f"{path} is not a valid run config, not valid JSON ({short_reason(err)}): "
+            f"{CONFIG_ADVICE}"
+        ) from err
+    missing = [
+        name
+        for name in sections
+        if not isinstance(saved, dict) or not isinstance(saved.get(name), dict)
+    ]
+    if missing:
+        found = sorted(saved) if isinstance(saved, dict) else type(saved).__name__
+        raise DamagedRunFileError(
+            f"{path} is not a valid run config: no {' or '.join(repr(m) for m in missing)} "
+            f"section (found {found}); {CONFIG_ADVICE}"
+        )
+    return saved
+
+
+def load_run_config(run_dir: str | Path) -> TrainConfig:
+    """The TrainConfig saved in a run folder (clear errors for a missing or broken file: the file,
+    and the section or fields that are wrong)."""
+    from rl.train_config import TrainConfig
+
+    path = Path(run_dir) / CONFIG_FILE
+    data = read_config_file(run_dir)["train"]
+    try:
         # a run made before a field existed keeps what it ran with, not today's default
         for (section, name), value in FIELDS_ADDED_LATER.items():
-            data.get(section, {}).setdefault(name, value)
+            if isinstance(data.get(section, {}), dict):
+                data.get(section, {}).setdefault(name, value)
         return TrainConfig.from_dict(data)
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as err:
-        raise ValueError(
-            f"{path} is not a valid run config ({err}); restore it or start a new run"
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise DamagedRunFileError(
+            f"{path} is not a valid run config ({short_reason(err)}); {CONFIG_ADVICE}"
         ) from err
 
 
 def _readable(path: Path) -> bool:
-    import torch
-
     try:
-        state = torch.load(path, weights_only=False, map_location="cpu")
-    except Exception:  # any unreadable file: truncated zip, foreign pickle, empty
+        load_checkpoint(path)
+    except (DamagedRunFileError, OSError):
         return False
-    return isinstance(state, dict) and "completed_iterations" in state
+    return True
 
 
-def resumable_checkpoint(run_dir: Path) -> Path | None:
-    """The checkpoint a resume continues from: ``last.pt``, or when it cannot be read (a disk
-    fault: it is written atomically) the newest readable ``model_<k>.pt``, with a warning;
-    None when the run has no checkpoint yet. Unreadable checkpoints only: a clear error."""
+def newest_readable_checkpoint(
+    run_dir: Path, command: str, doing: str, note: str = ""
+) -> Path | None:
+    """``checkpoints/last.pt``, or when it cannot be read (a disk fault: it is written atomically)
+    the newest readable ``model_<k>.pt``, with a warning from ``command`` that it is ``doing``
+    (``resuming``) from that one instead (``note``: what that means); None when the run has no
+    checkpoint. Only unreadable checkpoints: :class:`DamagedRunFileError` naming the folder."""
     folder = run_dir / CHECKPOINT_DIR
     last = folder / LAST_CHECKPOINT
     kept = sorted(
@@ -335,15 +450,44 @@ def resumable_checkpoint(run_dir: Path) -> Path | None:
     for candidate in kept:
         if _readable(candidate):
             print(
-                f"a2cf-mb train: warning: {last} cannot be read; resuming from {candidate.name}, "
-                "the newest readable checkpoint (later iterations are redone)",
+                f"{command}: warning: {last} cannot be read; {doing} from {candidate.name}, "
+                f"the newest readable checkpoint{note}",
                 file=sys.stderr,
             )
             return candidate
-    raise ValueError(
+    raise DamagedRunFileError(
         f"no readable checkpoint in {folder} ({LAST_CHECKPOINT} and model_<k>.pt are damaged): "
-        "this run cannot be resumed; start a new run"
+        "restore one from a backup, or start a new run"
     )
+
+
+def resumable_checkpoint(run_dir: Path) -> Path | None:
+    """The checkpoint a resume continues from (:func:`newest_readable_checkpoint`; iterations
+    after a fallback checkpoint are redone)."""
+    return newest_readable_checkpoint(
+        run_dir, "a2cf-mb train", "resuming", " (later iterations are redone)"
+    )
+
+
+def remove_unstarted_run(run_dir: Path) -> None:
+    """Delete what a new run wrote before it failed in its first iteration (config, git revision,
+    TensorBoard file, logs): a folder without a checkpoint from a run that cannot start would
+    mislead the next command (``eval``, ``--resume`` would repeat the failure). Nothing is
+    deleted once a checkpoint exists."""
+    import shutil
+
+    if (run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT).exists() or any(
+        (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
+    ):
+        return
+    names = (CONFIG_FILE, GIT_FILE, CURRICULUM_LOG, WARMSTART_FILE, EVALS_LOG, EVALS_DIR)
+    for path in [*(run_dir / n for n in names), *run_dir.glob(EVENTS_GLOB)]:
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+    for folder in (run_dir / CHECKPOINT_DIR, run_dir / "git"):  # git/: rsl-rl's diff of the code
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -368,6 +512,9 @@ def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
         return StartPoint(cfg, None, None)
     saved = load_run_config(run_dir)
     cfg = replace(saved, iterations=cfg.iterations, resume=cfg.resume)
+    if main:  # what writers killed mid-write left (a SIGKILL during a save): never read
+        for folder in (run_dir, run_dir / CHECKPOINT_DIR, run_dir / EVALS_DIR):
+            remove_stale_temp_files(folder)
     checkpoint = resumable_checkpoint(run_dir)
     if checkpoint is not None:
         return StartPoint(cfg, checkpoint, None)

@@ -35,6 +35,7 @@ import dataclasses
 import io
 import json
 import random
+import re
 import sys
 from collections import deque
 from dataclasses import asdict, dataclass, replace
@@ -79,8 +80,10 @@ from rl.run_folder import (  # noqa: F401 - names re-exported for readers of rl.
     POLICY_FILE,
     WARMSTART_FILE,
     RunFolderLock,
+    load_checkpoint,
     load_run_config,
     new_run_dir,
+    remove_unstarted_run,
     resumable_checkpoint,
     start_point,
 )
@@ -364,7 +367,7 @@ class A2CFRunner(OnPolicyRunner):
     def load_checkpoint(self, path: Path) -> None:
         """Restore weights, optimisers, iteration counter, env and curriculum state, logger,
         RNG; the run then continues exactly where the checkpoint was written."""
-        state = torch.load(path, weights_only=False, map_location=self.device)
+        state = load_checkpoint(path, map_location=self.device)
         if state.get("format") != CHECKPOINT_FORMAT:
             raise ValueError(
                 f"{path} is a checkpoint of an older layout (format {state.get('format')}, this "
@@ -518,6 +521,30 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
         return _train_locked(cfg, run_dir, eta0, verbose)
 
 
+def check_device_available(device: str, flag: str) -> None:
+    """Refuse a CUDA device this machine does not have, in one line naming ``flag`` (the flag
+    that chose it: ``--device``, ``--env-device``), what is there and what to give instead."""
+    if not device.startswith("cuda"):
+        return
+    if not torch.cuda.is_available():
+        why = (
+            f"this torch ({torch.__version__}) is built without CUDA"
+            if torch.version.cuda is None
+            else "no CUDA GPU is visible (check the driver and CUDA_VISIBLE_DEVICES)"
+        )
+        raise ValueError(
+            f"{flag} {device}: {why}; train on the CPU with {flag} cpu, or install a CUDA build "
+            "of torch on a machine with a GPU (docs/gpu.md)"
+        )
+    index = re.fullmatch(r"cuda:(\d+)", device)
+    count = torch.cuda.device_count()
+    if index and int(index[1]) >= count:
+        raise ValueError(
+            f"{flag} {device}: this machine has {count} GPU{'s' * (count != 1)} "
+            f"(cuda:0 to cuda:{count - 1}); give {flag} cuda or one of those"
+        )
+
+
 def check_distributed(cfg: TrainConfig, rank: ProcessRank) -> None:
     """Refuse, under torchrun, what the processes of the job could not agree on."""
     if not rank.distributed:
@@ -540,6 +567,10 @@ def _train_locked(
 ) -> TrainResult:
     """:func:`train` while this process holds the run folder's lock."""
     start = start_point(cfg, run_dir)
+    # A device that is not there is one line, before the env or the run folder's files.
+    check_device_available(start.cfg.device, "--device")
+    if start.cfg.env.backend == "warp":
+        check_device_available(start.cfg.env.device, "--env-device")
     # The run folder's config holds the discount and epochs in use, so a resume keeps them.
     cfg, checkpoint = with_task_defaults(start.cfg), start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
@@ -557,17 +588,25 @@ def _train_locked(
     main = runner.is_main_process
     if checkpoint is not None:
         runner.load_checkpoint(checkpoint)
-    if main and not (run_dir / CONFIG_FILE).is_file():
+    new_folder = main and not (run_dir / CONFIG_FILE).is_file()
+    if new_folder:
         _write_run_config(run_dir, cfg, env, rsl_cfg)
-    if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
-        report = warm_start(cfg, env, runner)
-        if main:
-            atomic_write_json(run_dir / WARMSTART_FILE, report)
     try:
+        if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
+            report = warm_start(cfg, env, runner)
+            if main:
+                atomic_write_json(run_dir / WARMSTART_FILE, report)
         with quiet:
             # Random episode counters only at the start of a run: a resume continues the
             # checkpointed ones.
             _learn(runner, cfg, random_start=cfg.random_episode_start and not checkpoint)
+    except Exception:
+        # A new run that fails before its first checkpoint would fail the same way again (same
+        # config, same seed): what it wrote goes, so no half-made folder misleads `eval`. An
+        # interrupt (Ctrl-C) keeps it: `--resume` starts it over from iteration 0.
+        if new_folder and not cfg.resume:
+            remove_unstarted_run(run_dir)
+        raise
     finally:
         env.close()
         if runner.is_distributed:

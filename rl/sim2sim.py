@@ -35,7 +35,6 @@ timers, episode time, command, phase; no wrench), and the task's pushes are appl
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -52,7 +51,12 @@ from rl.envs.randomization import nominal_params
 from rl.envs.state import EnvState, quat_rotate_inverse
 from rl.envs.vec_env import GRAVITY_MPS2
 from rl.export import OnnxMotionPolicy
-from rl.run_folder import POLICY_BUNDLE_FILE
+from rl.run_folder import (
+    POLICY_BUNDLE_FILE,
+    REEXPORT_ADVICE,
+    DamagedRunFileError,
+    read_run_json,
+)
 from rl.tasks.config import TaskConfig
 from robots import g1
 from robots.mujoco_model import FLOOR_GEOM, STAND_KEYFRAME, MujocoModelConfig, build_mujoco_spec
@@ -291,7 +295,11 @@ def _initial_states(
 def load_bundle(run_dir: Path, task: TaskConfig) -> dict[str, Any]:
     """The deployment bundle of ``run_dir``, checked against ``task``'s command width."""
     path = run_dir / POLICY_BUNDLE_FILE
-    bundle = json.loads(path.read_text())
+    bundle = read_run_json(path, "the deployment bundle", REEXPORT_ADVICE.format(run_dir=run_dir))
+    if not isinstance(bundle, dict):
+        raise DamagedRunFileError(
+            f"{path} is not a deployment bundle: {REEXPORT_ADVICE.format(run_dir=run_dir)}"
+        )
     if "joints" not in bundle:
         raise ValueError(f"{path} has no deployment bundle (exported before format 2)")
     columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}

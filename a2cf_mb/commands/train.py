@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
     overrides = task_overrides(args)
     if args.resume:
+        saved = load_run_config(args.resume)  # first: a folder that holds no run is one line
         given = given_flags(args)
         ignored = [d for d in given if d not in ALWAYS_APPLIED_ON_RESUME]
         ignored += ["task-reward-weight"] * bool(args.task_reward_weight)
@@ -102,7 +103,6 @@ def run(args: argparse.Namespace) -> int:
                 f"not applied: {flags}",
                 file=sys.stderr,
             )
-        saved = load_run_config(args.resume)
         iterations = args.iterations if "iterations" in given else saved.iterations
         cfg = TrainConfig(resume=args.resume, iterations=iterations)
     else:
