@@ -12,8 +12,11 @@ import os
 import pickle
 import re
 import sys
+import time
+import traceback
 import warnings
 import zipfile
+from pathlib import Path
 
 COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.info",
@@ -56,6 +59,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="a2cf-mb",
         description="A2CF with a model-based wrench oracle for the Unitree G1.",
+    )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help=f"show the full traceback of any error (as {DEBUG_ENV}=1); give it before COMMAND",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     names = {command_name(m): m for m in COMMAND_MODULES}
@@ -128,7 +136,11 @@ def _register_unavailable(
 
 
 DEBUG_ENV = "A2CF_DEBUG"
-"""Set this environment variable to 1 to get full tracebacks for input errors."""
+"""Set this environment variable to 1 (or give ``a2cf-mb --debug``) to get full tracebacks."""
+
+TRACEBACK_DIR_ENV = "A2CF_TRACEBACK_DIR"
+"""Folder where the traceback of an unexpected error is saved; unset: ``$XDG_STATE_HOME/a2cf-mb``
+(``~/.local/state/a2cf-mb``)."""
 
 USER_ERRORS: tuple[type[BaseException], ...] = (
     ValueError,  # bad values, malformed files (library errors speak to the user; JSON, Unicode)
@@ -180,6 +192,38 @@ def user_message(exc: BaseException) -> str:
     return str(exc) or type(exc).__name__
 
 
+def save_traceback(exc: BaseException, command: str) -> Path | None:
+    """Write the full traceback of ``exc`` (raised by ``command``) to a new file of the traceback
+    folder (:data:`TRACEBACK_DIR_ENV`); its path, or None when it cannot be written."""
+    state = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
+    folder = Path(os.environ.get(TRACEBACK_DIR_ENV) or Path(state) / "a2cf-mb")
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    path = folder / f"traceback-{stamp}-{os.getpid()}.txt"
+    text = "".join(traceback.format_exception(exc))
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path.write_text(f"{command} (argv: {sys.argv})\n{text}")
+    except OSError:
+        return None
+    return path
+
+
+def unexpected_error_line(exc: BaseException, command: str, saved: Path | None) -> str:
+    """The one line printed for an exception that is not a user error (a bug, or a fault this
+    toolkit does not know yet): the command, the exception, where its traceback went."""
+    lines = str(exc).strip().splitlines()
+    what = f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
+    where = (
+        f"the full traceback is in {saved}"
+        if saved is not None
+        else f"the traceback could not be saved; rerun with {DEBUG_ENV}=1 to see it"
+    )
+    return (
+        f"{command}: unexpected error: {what} ({where}; please report it with that file; "
+        f"`a2cf-mb --debug ...` or {DEBUG_ENV}=1 shows it here)"
+    )
+
+
 def _format_warning(message, category, filename, lineno, line=None) -> str:
     return f"a2cf-mb: warning: {message}\n"
 
@@ -188,14 +232,18 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the process exit code.
 
     User errors (:data:`USER_ERRORS`: a bad flag value, a malformed clip, a missing or unwritable
-    path, a truncated file) print one line on stderr naming the input and what to do, exit code 2;
-    ``A2CF_DEBUG=1`` re-raises them with the traceback. Other exceptions are bugs and propagate
-    with their traceback.
+    path, a truncated file) print one line on stderr naming the input and what to do, exit code 2.
+    Any other exception is a bug (or a fault not known yet): one line with the command, the
+    exception and the file its traceback was saved to (:func:`save_traceback`), exit code 1.
+    ``a2cf-mb --debug COMMAND ...`` or ``A2CF_DEBUG=1`` re-raises both with the traceback.
     """
     warnings.formatwarning = _format_warning
     command = "a2cf-mb"
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = os.environ.get(DEBUG_ENV) == "1"
+    if argv[:1] == ["--debug"]:
+        debug, argv = True, argv[1:]
     try:
-        argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv[0] if argv else None).parse_args(argv)
         command = f"a2cf-mb {args.command}"
         result = args.func(args)
@@ -203,8 +251,13 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
-        if not is_user_error(exc) or os.environ.get(DEBUG_ENV) == "1":
+        if debug:
             raise
+        if not is_user_error(exc):
+            print(
+                unexpected_error_line(exc, command, save_traceback(exc, command)), file=sys.stderr
+            )
+            return 1
         print(
             f"{command}: error: {user_message(exc)} (set {DEBUG_ENV}=1 for the full traceback)",
             file=sys.stderr,
