@@ -370,3 +370,33 @@ def test_figures_are_written_atomically(tmp_path) -> None:
     plt.close(fig)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]  # no temporary left behind
+
+
+@pytest.mark.parametrize("task", sorted(__import__("rl.registry", fromlist=["TASKS"]).TASKS))
+def test_every_task_trains_in_mode_a2cf(tmp_path, task: str) -> None:
+    """One iteration of every registered task in the paper's method (its alone envs included):
+    the walk tasks once crashed at their first alone episode (an alone measure without the
+    curriculum's per-env starts)."""
+    cfg = tiny_config(tmp_path, "a2cf", task=task, iterations=1, export_onnx=False,
+                      num_steps_per_env=4)  # fmt: skip
+    result = train(cfg, verbose=False)
+    assert result.iterations_done == 1
+
+
+def test_the_walks_alone_envs_move_their_own_terrain_levels() -> None:
+    from rl.registry import make_env
+
+    env = make_env("walk", 4, num_threads=1)
+    try:
+        env.task_components.track_alone(8)
+        alone = env.task_components.alone_skill
+        assert alone is not None and alone.curriculum is env.task_components.skill
+        state = env.env_state
+        ids = torch.tensor([3])
+        env.task_components.skill.levels[3] = 2
+        alone.on_episodes_end(ids, torch.tensor([True]), torch.tensor([10]), state)
+        assert alone.seen.tolist() == [False, False, False, True]
+        assert alone.mean_level() == float(env.task_components.skill.levels[3])
+        assert "Curriculum/terrain_level_alone" in alone.log()
+    finally:
+        env.close()

@@ -217,6 +217,12 @@ class SkillMeasure(Component, ABC):
 
     max_episode_length: int  # policy steps of a full episode (set by the measure's constructor)
 
+    def alone_measure(self) -> SkillMeasure | None:
+        """The measure of the alone envs' episodes where it cannot be a fresh build of this one's
+        config (one that holds per-env state the task's resets fill, e.g. the walk's terrain
+        curriculum); None: a fresh build with its own window."""
+        return None
+
     def counted(self, time_outs: torch.Tensor, lived_steps: torch.Tensor) -> torch.Tensor:
         """Finished episodes a skill window counts: failures, and time-outs after a full episode
         (not those a runner's random episode start cut short)."""

@@ -50,6 +50,10 @@ class TaskComponents:
         if window is None:
             self.alone_skill = None
             return
+        shared = self.skill.alone_measure()
+        if shared is not None:
+            self.alone_skill = shared
+            return
         cfg = self._skill_cfg
         if "window" in {f.name for f in dataclasses.fields(cfg)}:
             cfg = dataclasses.replace(cfg, window=window)

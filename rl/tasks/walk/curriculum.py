@@ -152,6 +152,10 @@ class TerrainCurriculum(SkillMeasure):
         )
         self.update_levels(env_ids.cpu(), distance, required.cpu())
 
+    def alone_measure(self) -> AloneTerrainLevels:
+        """The alone envs' measure: their levels in this curriculum (which places every env)."""
+        return AloneTerrainLevels(self)
+
     def mean_level(self) -> float:
         """Mean terrain level of the envs [-]."""
         return float(self.levels.float().mean()) if self.levels.numel() else 0.0
@@ -195,3 +199,51 @@ class TerrainCurriculum(SkillMeasure):
         self.generator.set_state(state["generator"])
         self.promotions = int(state["promotions"])
         self.demotions = int(state["demotions"])
+
+
+class AloneTerrainLevels(SkillMeasure):
+    """The alone envs' terrain curriculum (A2CF's envs that are never helped): their episodes move
+    their own levels in the walk's curriculum, which places every env at its resets (so the tiles,
+    starts and levels stay one per env); progress = the mean level of the envs seen here over
+    ``learned_fraction`` x top level."""
+
+    def __init__(self, curriculum: TerrainCurriculum) -> None:
+        self.curriculum = curriculum
+        self.seen = torch.zeros(0, dtype=torch.bool)  # (N,) envs whose episodes came here
+
+    def on_episodes_end(
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
+    ) -> None:
+        """Move the finished alone episodes' levels; remember which envs are alone."""
+        self.curriculum.on_episodes_end(env_ids, time_outs, lived_steps, state)
+        ids = env_ids.cpu()
+        grow = int(ids.max()) + 1 - self.seen.numel()
+        if grow > 0:
+            self.seen = torch.cat([self.seen, torch.zeros(grow, dtype=torch.bool)])
+        self.seen[ids] = True
+
+    def mean_level(self) -> float:
+        """Mean terrain level of the alone envs seen so far [-] (0 before any)."""
+        levels = self.curriculum.levels[: self.seen.numel()][self.seen]
+        return float(levels.float().mean()) if levels.numel() else 0.0
+
+    def progress(self) -> float:
+        """The alone envs' mean level over ``learned_fraction`` x top level."""
+        cfg = self.curriculum.cfg
+        return self.mean_level() / (cfg.learned_fraction * self.curriculum.top_level)
+
+    def log(self) -> dict[str, float]:
+        """``Curriculum/terrain_level_alone``, once an alone episode has ended."""
+        return {"Curriculum/terrain_level_alone": self.mean_level()} if self.seen.any() else {}
+
+    def state_dict(self) -> dict[str, Any]:
+        """Which envs are alone (their levels live in the curriculum's state)."""
+        return {"seen": self.seen.clone()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` output."""
+        self.seen = state["seen"].clone()
