@@ -79,7 +79,8 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except OSError as err:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # e.g. the folder is a file: there is no temp file
+            tmp.unlink(missing_ok=True)
         if err.filename != str(tmp) or not err.strerror:
             raise
         # The temp name means nothing to the user: name the file they asked for.
