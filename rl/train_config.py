@@ -152,7 +152,7 @@ class TrainConfig:
         get_mode(self.mode)
         if self.torch_threads < 0:
             raise ValueError(
-                f"torch_threads must be >= 0 (0: torch's default), got {self.torch_threads}"
+                f"--torch-threads must be >= 0 (0: torch's default), got {self.torch_threads}"
             )
         for name in ("iterations", "num_steps_per_env", "save_interval"):
             if getattr(self, name) <= 0:
@@ -166,7 +166,7 @@ class TrainConfig:
                 f"--ppo-kl-actions must be 'motion' or 'all', got '{self.ppo.kl_actions}'"
             )
         if not 0.0 <= self.random_mask_prob < 1.0:
-            raise ValueError(f"random_mask_prob must be in [0, 1), got {self.random_mask_prob}")
+            raise ValueError(f"--random-mask-prob must be in [0, 1), got {self.random_mask_prob}")
         if self.warmstart and not get_mode(self.mode).assist:
             raise ValueError(
                 f"--warmstart needs an assist head; mode '{self.mode}' has none (use a2cf)"
