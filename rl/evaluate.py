@@ -97,6 +97,13 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
                 onnx_policy(obs["policy"].cpu().numpy(), obs["history"].cpu().numpy())
             )
 
+    if cfg.sim2sim:  # sim2sim runs the ONNX policy of the bundle: both checked before rollouts
+        from rl.sim2sim import load_bundle
+
+        if not cfg.use_onnx:
+            _require_exported_policy(run_dir, train_cfg.export_onnx)
+            OnnxMotionPolicy(run_dir / POLICY_FILE)
+        load_bundle(run_dir, resolve_task(train_cfg))
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
     env = G1VecEnv(env_cfg, resolve_task(train_cfg))
     if not cfg.use_onnx:
