@@ -383,3 +383,33 @@ def test_eval_in_a_read_only_run_folder_names_the_folder(capsys, run):
     assert_one_line(err, str(run / EVAL_FILE))
     assert ".tmp-" not in err
     assert snapshot(run) == before
+
+
+@pytest.mark.parametrize("name", ["curriculum.jsonl", "evals.jsonl", METRICS_FILE])
+def test_resume_rewrites_the_logs_it_owns_from_the_checkpoint(capsys, run, finished_run, name):
+    """The curriculum log, the alone evaluations and metrics.json are rewritten by a resume (from
+    the checkpoint and the logger's rows): junk in them is repaired, checkpoints are untouched."""
+    damage(run, name, "junk")
+    checkpoints = {p.name: p.read_bytes() for p in (run / CHECKPOINT_DIR).glob("*.pt")}
+    code, err = run_cli(capsys, "train", "--resume", run)
+    assert code == 0, err
+    assert {p.name: p.read_bytes() for p in (run / CHECKPOINT_DIR).glob("*.pt")} == checkpoints
+    if name == METRICS_FILE:
+        rows = [json.loads((r / name).read_text())["iterations"] for r in (run, finished_run)]
+        assert rows[0] == rows[1]
+    else:
+        assert (run / name).read_bytes() == (finished_run / name).read_bytes()
+
+
+def test_warp_without_the_gpu_extra_names_the_extra(capsys, tmp_path):
+    try:
+        import mujoco_warp  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        pytest.skip("the gpu extra is installed")
+    out = tmp_path / "out"
+    code, err = run_cli(capsys, "train", "--out", out, "--run-name", "r", "--env-backend", "warp")
+    assert code == 2
+    assert_one_line(err, "pip install 'a2cf-mb[gpu]'")
+    assert not out.exists()
