@@ -539,9 +539,10 @@ def check_device_available(device: str, flag: str) -> None:
     index = re.fullmatch(r"cuda:(\d+)", device)
     count = torch.cuda.device_count()
     if index and int(index[1]) >= count:
+        there = "cuda:0" if count == 1 else f"cuda:0 to cuda:{count - 1}"
         raise ValueError(
-            f"{flag} {device}: this machine has {count} GPU{'s' * (count != 1)} "
-            f"(cuda:0 to cuda:{count - 1}); give {flag} cuda or one of those"
+            f"{flag} {device}: this machine has {count} GPU{'s' * (count != 1)} ({there}); "
+            f"give {flag} cuda or one that exists"
         )
 
 
