@@ -418,3 +418,36 @@ def test_every_solve_command_takes_overwrite():
     ):
         assert getattr(parser.parse_args([command]), dest) is False
         assert getattr(parser.parse_args([command, "--overwrite"]), dest) is True
+
+
+ARTIFACT_DAMAGES = {
+    "truncated": lambda data: data[: len(data) // 2],
+    "emptied": lambda data: b"",
+    "junk": lambda data: bytes(range(256)) * 4,
+}
+TINY_TRAIN = ["--env-num-envs", "4", "--num-steps-per-env", "8", "--iterations", "1"]
+
+
+@pytest.mark.parametrize("how", list(ARTIFACT_DAMAGES))
+@pytest.mark.parametrize("name", ["arrays.npz", "manifest.json", "oracle.json"])
+@pytest.mark.parametrize("command", ["train", "coach"])
+def test_a_damaged_artifact_is_one_line_for_each_reader(
+    capsys, no_debug, old_walk, tmp_path, name, how, command
+):
+    """Each file of an artifact truncated, emptied or junk, read by ``train --warmstart`` and
+    ``coach``: one line naming the file and to regenerate it; no run folder; the artifact as
+    it was."""
+    artifact = Path(shutil.copytree(old_walk, tmp_path / "walk"))
+    path = artifact / name
+    path.write_bytes(ARTIFACT_DAMAGES[how](path.read_bytes()))
+    before = {p: p.read_bytes() for p in artifact.rglob("*") if p.is_file()}
+    out = tmp_path / "runs"
+    args = {
+        "train": ["train", "--task", "walk", "--warmstart", str(artifact), "--out", str(out)],
+        "coach": ["coach", str(artifact)],
+    }[command]
+    code, err = _run(capsys, *args, *(TINY_TRAIN if command == "train" else []))
+    assert code == 2
+    _assert_one_clear_line(err, name, "regenerate")
+    assert not out.exists()
+    assert {p: p.read_bytes() for p in artifact.rglob("*") if p.is_file()} == before
