@@ -1,5 +1,12 @@
-"""The run folder: its file names, the lock that lets one process at a time write it, and where a
-run starts in it (new folder, or resume from the newest readable checkpoint).
+"""The run folder: its file names, the lock that lets one process at a time write it, where a
+run starts in it (new folder, or resume from the newest readable checkpoint), and the one reader
+of each kind of file it holds.
+
+Every command that reads a run folder (``train --resume``, ``eval``, ``eval-curve``, ``compare``,
+sim2sim) goes through :func:`load_checkpoint`, :func:`read_config_file` /
+:func:`load_run_config`, :func:`read_run_json` and :func:`read_run_jsonl` (the ONNX file:
+:class:`rl.export.OnnxMotionPolicy`). A damaged file raises :class:`DamagedRunFileError`, whose
+message names the file and what to do (``docs/faults.md``).
 
 The names are defined here once; :mod:`rl.runner` (which writes a run folder, and re-exports them),
 :mod:`rl.compare`, :mod:`rl.sim2sim`, :mod:`a2cf_mb.demo` and the benchmarks import them. This
