@@ -50,7 +50,7 @@ class EvalConfig:
     seed: int = 1  # env seed (differs from training's default 0) [-]
     use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
-    video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length [s]
+    video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length, or to the reference's length on a tracking task [s]
     video_ghost_side_m: float = 1.0  # the reference's ghost (tracking tasks) shifted to the camera's right; 0 overlays it on the robot's reference pose [m]
     sim2sim: bool = False  # also roll the ONNX policy out in the second simulator (rl.sim2sim)
 
@@ -121,7 +121,9 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     with contextlib.closing(env):
         alone = rollout_alone(env, policy, cfg.num_steps, out_dir=run_dir, on_step=record)
         if cfg.video:
-            _extend_video(env, policy, frames, round(cfg.video_min_s / env.step_dt_s))
+            segment_s = env.command_gen.reference_duration_s(0) or 0.0  # the whole reference
+            min_s = max(cfg.video_min_s, segment_s)
+            _extend_video(env, policy, frames, round(min_s / env.step_dt_s))
     num_steps = alone["num_steps"]
     result = {
         "run_dir": str(run_dir),

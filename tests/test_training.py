@@ -340,6 +340,7 @@ def test_eval_video_frames_carry_a_tracking_tasks_reference() -> None:
             env.step(torch.zeros(2, env.num_actions))
             frames.record(env)
         now = env.command_gen.reference_qpos()
+        assert env.command_gen.reference_duration_s(0) == pytest.approx(19.0)  # a video's length
     finally:
         env.close()
     ghost = frames.ghost_qpos()
@@ -351,6 +352,7 @@ def test_eval_video_frames_carry_a_tracking_tasks_reference() -> None:
     try:
         frames = _VideoFrames()
         frames.record(env)
+        assert env.command_gen.reference_duration_s(0) is None
     finally:
         env.close()
     assert frames.ghost_qpos() is None and len(frames) == 1

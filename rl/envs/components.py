@@ -100,6 +100,11 @@ class Command(Component, ABC):
         video then shows the robot alone)."""
         return None
 
+    def reference_duration_s(self, env: int = 0) -> float | None:
+        """Length [s] of the reference env ``env`` tracks (a video of it lasts as long); None
+        when the task has no reference motion."""
+        return None
+
     def targets(self) -> dict[str, torch.Tensor]:
         """What the reference asks of the state after the next step beyond the command (which the
         policy observes), for reward and termination terms (``EnvState.targets``; e.g. a tracking

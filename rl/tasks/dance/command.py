@@ -149,6 +149,10 @@ class ClipTrackingCommand(Command):
         artifact's coach: the built-in dance artifact of ``solve-dance`` has the same frames)."""
         return (self.frame(0) - self._start[self.clip]).double() * self.library.dt_s
 
+    def reference_duration_s(self, env: int = 0) -> float:
+        """Length [s] of env ``env``'s clip (from its first frame to its last)."""
+        return float(self._length[self.clip[env]] - 1) * self.library.dt_s
+
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
         frames = self.frame(ahead=1).cpu().numpy()  # the host library (coaches, not the env step)
