@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Copy the track_learn runs' figures (no checkpoints, no TensorBoard events; metrics.json gzipped)
+# into this folder and summarise them: collect.sh [RUN_PARENT] (default runs/track_learn).
+set -euo pipefail
+SRC=${1:-runs/track_learn}
+DST=$(dirname "$0")
+for run in "$SRC"/*/; do
+  name=$(basename "$run")
+  [ -f "$run/config.json" ] || continue
+  mkdir -p "$DST/$name"
+  for f in config.json git.json evals.jsonl evals_checkpoints.jsonl warmstart.json policy.json; do
+    [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
+  done
+  [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+  [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
+done
+for art in "$SRC"/oracle_*/; do  # the oracle's summary (its reference of a LAFAN1 clip stays out)
+  [ -f "$art/oracle.json" ] || continue
+  mkdir -p "$DST/$(basename "$art")"
+  cp "$art/oracle.json" "$DST/$(basename "$art")/"
+done
+python "$DST/summarise.py" "$DST"/dance_baseline_s{0,1,2} --out "$DST"
+if [ -d "$DST/dance_a2cfwarm_s0" ]; then
+  python "$DST/summarise.py" "$DST"/dance_baseline_s0 "$DST"/dance_a2cfwarm_s0 --out "$DST/a2cf_vs_baseline_s0"
+fi
+if [ -d "$DST/lafan_baseline_s0" ]; then
+  python "$DST/summarise.py" "$DST"/lafan_baseline_s0 --out "$DST/lafan"
+fi
