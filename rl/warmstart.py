@@ -304,11 +304,12 @@ def _tracks_the_artifacts_motion(folder: Path, task: TaskConfig) -> bool:
         parse_frames,
         reference_fingerprint,
     )
-    from rl.tasks.track.library import load_track_reference
+    from rl.tasks.track.library import at_policy_rate, load_track_reference
 
     frames = parse_frames(getattr(task.commands, "frames", ""))
-    solved = reference_fingerprint(load_reference(folder))
-    trained = [reference_fingerprint(load_track_reference(s, frames)) for s in sources]
+    step = task.commands.step_dt_s  # both at the policy rate (a backflip artifact is finer)
+    solved = reference_fingerprint(at_policy_rate(load_reference(folder), step))
+    trained = [reference_fingerprint(load_track_reference(s, frames, step)) for s in sources]
     if solved in trained:
         return True
     segment = f" (frames {task.commands.frames})" if frames else ""

@@ -246,3 +246,30 @@ def test_cli_trains_evaluates_and_exports_a_csv_segment(tmp_path, g1_pin, capsys
         assert needle in err and str(reference) in err and "Traceback" not in err
         assert len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "runs" / "bad").exists()
+
+
+def test_an_artifact_on_a_finer_grid_is_tracked_at_the_policy_rate(wave_clip, tmp_path) -> None:
+    """A backflip-like artifact (its TO's 200 Hz grid) is resampled to the 50 Hz policy step, and
+    its warm start still recognises the tracked motion as its own."""
+    from optimal_control.oracle import OracleConfig, solve_reference_oracle
+    from optimal_control.reference_sources import load_reference
+    from rl.tasks.track.library import at_policy_rate, load_track_reference
+    from rl.train_config import TrainConfig
+    from rl.warmstart import warmstart_eta0
+
+    clip = load_reference(wave_clip)
+    fine = at_policy_rate(clip, 0.005)
+    assert fine.num_frames == 4 * (clip.num_frames - 1) + 1
+    cfg = OracleConfig(alphas=(1.0,), video=False, progress=False, out=str(tmp_path / "fine"))
+    _, folder = solve_reference_oracle("dance", fine, cfg, {})
+    tracked = load_track_reference(str(folder), None, 0.02)
+    assert tracked.dt == 0.02 and tracked.num_frames == clip.num_frames
+    np.testing.assert_allclose(tracked.q, clip.q, atol=1e-6)  # the 50 Hz frames come back
+    env = make_env(quiet(track_task((str(folder),))), 1, num_threads=1)
+    try:
+        assert int(env.command_gen.library.length[0]) == clip.num_frames
+    finally:
+        env.close()
+    assert (
+        warmstart_eta0(TrainConfig(warmstart=str(folder)), track_task((str(folder),))) is not None
+    )

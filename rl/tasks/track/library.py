@@ -20,8 +20,11 @@ from rl.tasks.dance.clips import BUILTIN_CLIP, ClipLibrary, _builtin_reference
 from rl.tasks.track.terms import TRACKED_BODIES
 
 
-def load_track_reference(source: str, frames: tuple[int, int] | None):
-    """The :class:`optimal_control.reference.Reference` of one source (and segment)."""
+def load_track_reference(
+    source: str, frames: tuple[int, int] | None, step_dt_s: float | None = None
+):
+    """The :class:`optimal_control.reference.Reference` of one source (and segment), at the
+    policy step ``step_dt_s`` [s] when given (:func:`at_policy_rate`)."""
     from optimal_control.reference_sources import MIN_DURATION_S, load_reference
 
     if source == BUILTIN_CLIP:
@@ -41,7 +44,29 @@ def load_track_reference(source: str, frames: tuple[int, int] | None):
             f"reference '{source}' lasts {ref.duration_s:.2f} s, shorter than "
             f"{MIN_DURATION_S:g} s: give a longer clip or a wider --reference-frames segment"
         )
-    return ref
+    return ref if step_dt_s is None else at_policy_rate(ref, step_dt_s)
+
+
+def at_policy_rate(ref, step_dt_s: float):
+    """``ref`` sampled every ``step_dt_s`` [s] over its span, unchanged where it already is (a
+    clip at 50 Hz); an oracle artifact on a finer grid (the backflip's TO) is resampled: q by
+    cubic splines and slerp, v and a linearly, contacts and phases from the nearest frame."""
+    from optimal_control.motion_clip import resample
+    from optimal_control.reference import Reference
+
+    if abs(ref.dt - step_dt_s) <= 1e-9:
+        return ref
+    q = resample(ref.q, 1.0 / ref.dt, 1.0 / step_dt_s)
+    t = np.arange(q.shape[0]) * step_dt_s
+    nearest = np.clip(np.rint(t / ref.dt).astype(int), 0, ref.num_frames - 1)
+
+    def linear(x: np.ndarray) -> np.ndarray:
+        return np.stack([np.interp(t, ref.time_s, x[:, k]) for k in range(x.shape[1])], axis=1)
+
+    return Reference(
+        time_s=t, q=q, v=linear(ref.v), a=linear(ref.a), contacts=ref.contacts[nearest],
+        phase=ref.phase[nearest], phase_names=ref.phase_names, dt=step_dt_s, name=ref.name,
+    ).validate()  # fmt: skip
 
 
 @dataclass
@@ -65,7 +90,7 @@ class MotionLibrary:
         """Load every source (and segment); kinematics of the tracked links at every frame."""
         if not sources:
             raise ValueError("the tracking task needs at least one reference (--reference PATH)")
-        refs = [load_track_reference(s, frames) for s in sources]
+        refs = [load_track_reference(s, frames, step_dt_s) for s in sources]
         clips = ClipLibrary.from_references(tuple(sources), refs, step_dt_s)
         pos, quat, lin, ang = link_kinematics(clips.qpos, clips.qvel)
         qpos = torch.as_tensor(clips.qpos).float()
