@@ -23,7 +23,8 @@ from tensordict import TensorDict
 
 from optimal_control.files import atomic_write_text
 from rl.agents.models import ASSIST_ACTION_DIM
-from rl.envs.config import EnvConfig
+from rl.config_bounds import MAX_SEED, check_range
+from rl.envs.config import MAX_NUM_ENVS, EnvConfig
 from rl.envs.vec_env import G1VecEnv
 from rl.run_folder import EVALS_DIR, EVALS_LOG
 from rl.tasks.config import TaskConfig
@@ -41,11 +42,10 @@ class AloneEvalConfig:
     seed: int = 10_000  # seed of the evaluation envs (never a training seed) [-]
 
     def __post_init__(self) -> None:
-        if self.interval < 0 or self.num_envs < 1:
-            raise ValueError(
-                f"evaluation interval must be >= 0 and num_envs >= 1, got {self.interval}, "
-                f"{self.num_envs}"
-            )
+        """Bound every field where it is declared; ``--eval-*`` are its flags."""
+        check_range(self.interval, "--eval-interval", 0)
+        check_range(self.num_envs, "--eval-num-envs", 1, MAX_NUM_ENVS)
+        check_range(self.seed, "--eval-seed", 0, MAX_SEED)
 
 
 def rollout_alone(

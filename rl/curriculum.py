@@ -71,6 +71,7 @@ import torch
 import torch.distributed as dist
 
 from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0
+from rl.config_bounds import check_range
 
 WRENCH_AXES: tuple[str, ...] = AXIS_NAMES
 """Names of the six wrench components: force [N] then moment [Nm] at the pelvis, on the axes of
@@ -134,46 +135,36 @@ class CurriculumConfig:
     min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
 
     def __post_init__(self) -> None:
-        """Reject values for which Algorithm 1 is meaningless."""
-        if not 0.0 <= self.epsilon < 1.0:
-            raise ValueError(f"curriculum epsilon must be in [0, 1), got {self.epsilon}")
-        if not 0.0 < self.delta < 1.0:
-            raise ValueError(f"curriculum delta must be in (0, 1), got {self.delta}")
+        """Bound every field where it is declared (values for which Algorithm 1 is
+        meaningless); ``--curriculum-*`` are its flags."""
+        check_range(self.epsilon, "--curriculum-epsilon", 0.0, 1.0, high_open=True)
+        check_range(self.delta, "--curriculum-delta", 0.0, 1.0, low_open=True, high_open=True)
+        check_range(self.negligible_force_n, "--curriculum-negligible-force-n", 0.0)
+        # a progress no run reaches (even inf) is a rule that never fires: allowed
+        check_range(self.less_assist_progress, "--curriculum-less-assist-progress", 0.0)
+        check_range(self.skill_learned_progress, "--curriculum-skill-learned-progress", 0.0)
+        check_range(self.alone_share, "--curriculum-alone-share", 0.0, 1.0, high_open=True)
+        check_range(self.alone_window, "--curriculum-alone-window", 1, 1_000_000)
+        check_range(
+            self.force_quantile, "--curriculum-force-quantile", 0.0, 1.0, low_open=True,
+            high_open=True,
+        )  # fmt: skip
+        check_range(self.anneal_iterations, "--curriculum-anneal-iterations", 0, 1_000_000_000)
+        check_range(self.min_phase_samples, "--curriculum-min-phase-samples", 1, 2**24)
         if self.force_measure not in FORCE_MEASURES:
             raise ValueError(
                 f"curriculum force_measure must be one of {FORCE_MEASURES}, got "
                 f"'{self.force_measure}'"
-            )
-        if not 0.0 < self.force_quantile < 1.0:
-            raise ValueError(
-                f"curriculum force_quantile must be in (0, 1), got {self.force_quantile}"
             )
         if self.skill_measure not in SKILL_MEASURES:
             raise ValueError(
                 f"curriculum skill_measure must be one of {SKILL_MEASURES}, got "
                 f"'{self.skill_measure}'"
             )
-        if not 0.0 <= self.alone_share < 1.0:
-            raise ValueError(f"curriculum alone_share must be in [0, 1), got {self.alone_share}")
         if self.skill_measure == "alone" and self.alone_share == 0.0:
             raise ValueError(
                 "curriculum skill_measure 'alone' needs alone envs: set alone_share > 0, or "
                 "skill_measure 'helped' (the paper)"
-            )
-        if self.alone_window < 1:
-            raise ValueError(f"curriculum alone_window must be >= 1, got {self.alone_window}")
-        if self.anneal_iterations < 0:
-            raise ValueError(
-                f"curriculum anneal_iterations must be >= 0 (0: no schedule), got "
-                f"{self.anneal_iterations}"
-            )
-        if self.min_phase_samples < 1:
-            raise ValueError(
-                f"curriculum min_phase_samples must be >= 1, got {self.min_phase_samples}"
-            )
-        if self.negligible_force_n < 0.0:
-            raise ValueError(
-                f"curriculum negligible_force_n must be >= 0 N, got {self.negligible_force_n}"
             )
 
 

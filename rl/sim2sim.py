@@ -292,16 +292,58 @@ def _initial_states(
     return qpos, qvel
 
 
+BUNDLE_KEYS = (
+    "onnx",
+    "clip_actions",
+    "control.policy_rate_hz",
+    "observation.width",
+    "observation.history_length",
+    "observation.terms",
+    "joints",
+)
+"""The keys of ``policy.json`` that sim2sim reads (dotted: nested)."""
+BUNDLE_JOINT_KEYS = ("kp", "kd", "effort_limit_nm", "default_pos_rad", "action_scale_rad")
+"""The keys sim2sim reads of each entry of the bundle's ``joints``."""
+BUNDLE_TERM_KEYS = ("name", "columns")
+"""The keys sim2sim reads of each entry of the bundle's ``observation.terms``."""
+
+
+def _missing_bundle_key(bundle: dict[str, Any]) -> str:
+    """The first key sim2sim reads that ``bundle`` lacks (dotted, ``joints[3].kp`` for an entry
+    of a list); empty when none is missing."""
+    for dotted in BUNDLE_KEYS:
+        node: Any = bundle
+        for depth, key in enumerate(dotted.split(".")):
+            if not isinstance(node, dict) or key not in node:
+                return ".".join(dotted.split(".")[: depth + 1])
+            node = node[key]
+    for where, entries, keys in (
+        ("joints", bundle["joints"], BUNDLE_JOINT_KEYS),
+        ("observation.terms", bundle["observation"]["terms"], BUNDLE_TERM_KEYS),
+    ):
+        if not isinstance(entries, list):
+            return f"{where}[0]"
+        for i, entry in enumerate(entries):
+            for key in keys:
+                if not isinstance(entry, dict) or key not in entry:
+                    return f"{where}[{i}].{key}"
+    return ""
+
+
 def load_bundle(run_dir: Path, task: TaskConfig) -> dict[str, Any]:
     """The deployment bundle of ``run_dir``, checked against ``task``'s command width."""
     path = run_dir / POLICY_BUNDLE_FILE
     bundle = read_run_json(path, "the deployment bundle", REEXPORT_ADVICE.format(run_dir=run_dir))
+    advice = REEXPORT_ADVICE.format(run_dir=run_dir)
     if not isinstance(bundle, dict):
-        raise DamagedRunFileError(
-            f"{path} is not a deployment bundle: {REEXPORT_ADVICE.format(run_dir=run_dir)}"
-        )
+        raise DamagedRunFileError(f"{path} is not a deployment bundle: {advice}")
     if "joints" not in bundle:
-        raise ValueError(f"{path} has no deployment bundle (exported before format 2)")
+        raise DamagedRunFileError(
+            f"{path} has no 'joints' (no deployment bundle: exported before format 2?): {advice}"
+        )
+    missing = _missing_bundle_key(bundle)
+    if missing:
+        raise DamagedRunFileError(f"{path} (the deployment bundle) has no '{missing}': {advice}")
     columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}
     width = columns["command"][1] - columns["command"][0] if "command" in columns else 0
     if width != task.commands.dim:

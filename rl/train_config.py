@@ -11,24 +11,10 @@ from typing import Any
 from rl.agents.modes import get_mode
 from rl.alone_eval import AloneEvalConfig
 from rl.assist import DEFAULT_RANDOM_MASK_PROB
+from rl.config_bounds import check_range
 from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
 from rl.warmstart import WarmStartConfig
-
-
-def check_range(
-    value: float, flag: str, low: float, high: float = float("inf"), *, low_open: bool = False
-) -> None:
-    """Refuse ``value`` (of ``flag``) outside ``[low, high]`` (``(low, high]`` when
-    ``low_open``), NaN included, in one line naming the flag and the range."""
-    above = low < value if low_open else low <= value
-    if not (above and value <= high):
-        if high == float("inf"):
-            span = f"{'>' if low_open else '>='} {low:g}"
-        else:
-            span = f"in {'(' if low_open else '['}{low:g}, {high:g}]"
-        raise ValueError(f"{flag} must be {span}, got {value}")
-
 
 MAX_ROLLOUT_TRANSITIONS = 2**24
 """Most transitions (envs x steps per env) one iteration may collect: a typical GPU run collects

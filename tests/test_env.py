@@ -359,7 +359,7 @@ def test_bad_inputs_give_clear_errors():
         make_env("moonwalk", 2)
     with pytest.raises(ValueError, match="not EnvConfig fields"):
         make_env("stand", 2, num_env=3)
-    with pytest.raises(ValueError, match="num_envs"):
+    with pytest.raises(ValueError, match="--env-num-envs"):
         EnvConfig(num_envs=0)
     with pytest.raises(ValueError, match="payload_body"):
         make_env(variant(randomization=dict(payload_body="backpack")), 1)

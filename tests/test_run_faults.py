@@ -215,6 +215,25 @@ BAD_FLAGS = {
     "--model-vae-learning-rate": ("0", "-1e-3", "nan", "1e30"),
     "--model-vae-kl-weight": ("-1", "nan"),
     "--model-vae-learning-epochs": ("-1", "nan", "1000000"),
+    "--env-decimation": ("0", "-1", "nan", "1000000"),
+    "--env-num-threads": ("-1", "nan", "100000"),
+    "--env-seed": ("-1", "nan", "10000000000"),
+    "--env-history-length": ("0", "-5", "nan", "1000000"),
+    "--env-clip-actions": ("0", "-1", "nan"),
+    "--env-max-abs-qvel": ("0", "-200", "nan"),
+    "--curriculum-epsilon": ("1", "-0.1", "nan", "1e30"),
+    "--curriculum-delta": ("0", "-0.2", "nan", "1e30"),
+    "--curriculum-negligible-force-n": ("-0.1", "nan"),
+    "--curriculum-less-assist-progress": ("-0.8", "nan"),
+    "--curriculum-skill-learned-progress": ("-0.6", "nan"),
+    "--curriculum-alone-share": ("1", "-0.25", "nan", "1e30"),
+    "--curriculum-alone-window": ("0", "-64", "nan", "1000000000"),
+    "--curriculum-force-quantile": ("0", "-0.9", "nan", "1e30"),
+    "--curriculum-anneal-iterations": ("-1", "nan", "10000000000"),
+    "--curriculum-min-phase-samples": ("0", "-1", "nan", "1000000000"),
+    "--eval-interval": ("-1", "nan"),
+    "--eval-num-envs": ("0", "-32", "nan", "100000000"),
+    "--eval-seed": ("-1", "nan", "10000000000"),
 }
 FLAG_CASES = [(flag, value) for flag, values in BAD_FLAGS.items() for value in values]
 
@@ -224,12 +243,31 @@ def test_a_bad_train_flag_is_one_line_before_any_folder(capsys, tmp_path, flag, 
     out = tmp_path / "out"
     code, err = run_cli(capsys, "train", "--out", out, "--run-name", "r", f"{flag}={value}")
     assert code == 2, err
-    if value == "100000000":
+    if (flag, value) == ("--num-steps-per-env", "100000000"):
         assert_one_line(err, "transitions")
-    else:  # the flag (EnvConfig names its field: num_envs)
-        assert_one_line(err)
-        assert flag in err or flag.removeprefix("--env-").replace("-", "_") in err, err
+    else:
+        assert_one_line(err, flag)
     assert not out.exists()
+
+
+# dotted key of policy.json -> removed; each is named in the line (sim2sim reads them all)
+BUNDLE_KEYS = ("onnx", "clip_actions", "control.policy_rate_hz", "observation.terms", "joints")
+
+
+@pytest.mark.parametrize("key", [*BUNDLE_KEYS, "joints[0].kp", "observation.terms[1].columns"])
+def test_a_bundle_of_valid_json_without_a_key_names_the_file_and_key(capsys, run, key):
+    bundle = json.loads((run / POLICY_BUNDLE_FILE).read_text())
+    *parents, last = key.replace("[", ".").replace("]", "").split(".")
+    node = bundle
+    for part in parents:  # "joints[0].kp": bundle["joints"][0], then del ["kp"]
+        node = node[int(part)] if part.isdigit() else node[part]
+    del node[last]
+    (run / POLICY_BUNDLE_FILE).write_text(json.dumps(bundle))
+    before = snapshot(run)
+    code, err = run_cli(capsys, "eval", "--sim2sim", *SMALL_EVAL, run)
+    assert code == 2, err
+    assert_one_line(err, POLICY_BUNDLE_FILE, f"'{key}'")
+    assert snapshot(run) == before
 
 
 @pytest.mark.parametrize(

@@ -12,9 +12,15 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from rl.config_bounds import MAX_SEED, check_range
+
 BACKENDS = ("mujoco", "warp")
 """Physics backends of :class:`rl.envs.G1VecEnv`: :mod:`rl.envs.physics` (MuJoCo C) and
 :mod:`rl.envs.warp_physics` (MuJoCo Warp)."""
+
+MAX_NUM_ENVS = 2**24
+"""Most envs one :class:`rl.envs.G1VecEnv` may hold (the most transitions one training iteration
+may collect, :data:`rl.train_config.MAX_ROLLOUT_TRANSITIONS`) [-]."""
 
 
 @dataclass(frozen=True)
@@ -35,11 +41,14 @@ class EnvConfig:
     device: str = "cpu"  # device of the physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
 
     def __post_init__(self) -> None:
-        for name in ("num_envs", "decimation", "history_length"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"EnvConfig.{name} must be >= 1, got {getattr(self, name)}.")
-        if self.num_threads < 0:
-            raise ValueError(f"EnvConfig.num_threads must be >= 0, got {self.num_threads}.")
+        """Bound every field where it is declared; ``--env-*`` are its flags."""
+        check_range(self.num_envs, "--env-num-envs", 1, MAX_NUM_ENVS)
+        check_range(self.decimation, "--env-decimation", 1, 1000)
+        check_range(self.num_threads, "--env-num-threads", 0, 4096)
+        check_range(self.seed, "--env-seed", 0, MAX_SEED)
+        check_range(self.history_length, "--env-history-length", 1, 1000)
+        check_range(self.clip_actions, "--env-clip-actions", 0.0, low_open=True)
+        check_range(self.max_abs_qvel, "--env-max-abs-qvel", 0.0, low_open=True)
         if self.backend not in BACKENDS:
             raise ValueError(
                 f"EnvConfig.backend must be one of {BACKENDS}, got '{self.backend}' (--env-backend)."
