@@ -271,9 +271,8 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
         )
     summary = OracleArtifact.read_summary(folder)
     eta0 = torch.tensor(summary.eta0, dtype=torch.float32)
-    if _tracks_the_artifacts_motion(folder, task):
-        pass  # a tracking task on the artifact's own motion, whatever the artifact was solved as
-    elif summary.task != task.name:
+    # a tracking task on the artifact's own motion takes it, whatever the artifact was solved as
+    if not _tracks_the_artifacts_motion(folder, task) and summary.task != task.name:
         raise ValueError(
             f"--warmstart artifact {folder} is for task '{summary.task}', the training "
             f"task is '{task.name}': solve the oracle for '{task.name}'"

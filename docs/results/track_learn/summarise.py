@@ -12,6 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
+from optimal_control.files import atomic_savefig, atomic_write_json
+
 
 def _rows(path: Path) -> list[dict]:
     if not path.is_file():
@@ -98,7 +100,7 @@ def plot(runs: list[dict], path: Path) -> None:
         ax.set_xlabel("env steps [M]")
     axes[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_savefig(fig, path, dpi=100)
 
 
 def main() -> None:
@@ -108,9 +110,9 @@ def main() -> None:
     args = parser.parse_args()
     runs = [summarise_run(r) for r in args.runs]
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "summary.json").write_text(json.dumps({"runs": runs}, indent=1) + "\n")
+    atomic_write_json(args.out / "summary.json", {"runs": runs})
     spread = {"source_runs": [r["run"] for r in runs], "budgets": seed_spread(runs)}
-    (args.out / "seed_spread.json").write_text(json.dumps(spread, indent=1) + "\n")
+    atomic_write_json(args.out / "seed_spread.json", spread)  # the demo reads it
     plot(runs, args.out / "curves.png")
     for run in runs:
         last = run["curve"][-1] if run["curve"] else {}
