@@ -374,12 +374,17 @@ def test_figures_are_written_atomically(tmp_path) -> None:
     assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]  # no temporary left behind
 
 
+_MODES = [pytest.param(m, marks=() if m == "a2cf" else pytest.mark.slow)
+          for m in ("a2cf", "baseline", "no-pi", "no-id", "no-rm")]  # fmt: skip
+
+
+@pytest.mark.parametrize("mode", _MODES)
 @pytest.mark.parametrize("task", sorted(__import__("rl.registry", fromlist=["TASKS"]).TASKS))
-def test_every_task_trains_in_mode_a2cf(tmp_path, task: str) -> None:
-    """One iteration of every registered task in the paper's method (its alone envs included):
-    the walk tasks once crashed at their first alone episode (an alone measure without the
-    curriculum's per-env starts)."""
-    cfg = tiny_config(tmp_path, "a2cf", task=task, iterations=1, export_onnx=False,
+def test_every_task_trains_in_every_mode(tmp_path, task: str, mode: str) -> None:
+    """One iteration of every registered task in every mode (a2cf, with its alone envs, in the
+    default suite; the others in the slow one): the walk tasks once crashed at their first alone
+    episode (an alone measure without the curriculum's per-env starts)."""
+    cfg = tiny_config(tmp_path, mode, task=task, iterations=1, export_onnx=False,
                       num_steps_per_env=4)  # fmt: skip
     result = train(cfg, verbose=False)
     assert result.iterations_done == 1
