@@ -50,6 +50,20 @@ OBSERVATION_TERM_DOCS: dict[str, tuple[str, str]] = {
 """How a robot computes each policy-observation term (the names of the tasks' policy groups)."""
 
 
+def reference_joint_columns(command_gen: Any) -> list[int]:
+    """Columns [a, b) of the command (not of the observation) that hold the reference joints the
+    actions are relative to (``joint_pos_ref``, 29 wide)."""
+    col = 0
+    for block in command_gen.columns():
+        if block.name == "joint_pos_ref" and block.width == 29:
+            return [col, col + block.width]
+        col += block.width
+    raise ValueError(
+        f"{type(command_gen).__name__}.columns() has no 29-wide joint_pos_ref block, which "
+        "actions_around_reference needs in the bundle"
+    )
+
+
 def command_parts(command_gen: Any, first_column: int, width: int) -> list[dict[str, Any]]:
     """The bundle's ``parts`` of the command term at columns ``first_column`` + [0, ``width``):
     the command generator's blocks (:meth:`rl.tasks.components.Command.columns`) with their
@@ -99,6 +113,10 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
             entry["parts"] = command_parts(env.command_gen, start, width)
         obs_terms.append(entry)
     limits = env.layout.joint_range_rad
+    base, base_columns = "default_pos_rad", {}
+    if env.task.actions_around_reference:
+        base = "command[action_base_command_columns]"
+        base_columns = {"action_base_command_columns": reference_joint_columns(env.command_gen)}
     return {
         "format": BUNDLE_FORMAT,
         "task": env.task.name,
@@ -106,9 +124,10 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
             "policy_rate_hz": 1.0 / env.step_dt_s,
             "physics_dt_s": env.physics_dt_s,
             "decimation": env.cfg.decimation,
-            "joint_target": "target_rad[i] = default_pos_rad[i] + action_scale_rad[i] * "
+            "joint_target": f"target_rad[i] = {base}[i] + action_scale_rad[i] * "
             "actions[i], tracked by a PD law tau = kp (target - q) - kd qdot clipped to "
             "+-effort_limit_nm",
+            **base_columns,
         },
         "joints": [
             {

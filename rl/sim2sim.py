@@ -409,6 +409,7 @@ def run_sim2sim(
     effort = np.array([j["effort_limit_nm"] for j in joints])
     default = np.array([j["default_pos_rad"] for j in joints])
     scale = np.array([j["action_scale_rad"] for j in joints])
+    base_cols = bundle["control"].get("action_base_command_columns")
     h = bundle["observation"]["history_length"]
     n = cfg.num_envs
     logic = TaskLogic(task, n, cfg.seed)
@@ -438,7 +439,8 @@ def run_sim2sim(
         action = np.clip(
             policy(obs.astype(np.float32), hist), -bundle["clip_actions"], bundle["clip_actions"]
         )
-        target = default + scale * action
+        target = default if base_cols is None else command[:, base_cols[0] : base_cols[1]]
+        target = target + scale * action
         kicks = pushes.kicks(dt)
         for i, data in enumerate(datas):
             if not active[i]:

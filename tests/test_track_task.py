@@ -19,6 +19,8 @@ from rl.tasks.config import quiet
 from rl.tasks.track import TRACK, terms, track_task
 from rl.tasks.track.terms import ANCHOR, yaw_quat
 
+ARMS = [15, 22]  # the joints the wave clip moves: left and right shoulder pitch
+
 
 @pytest.fixture(scope="module")
 def wave_clip(tmp_path_factory, g1_pin) -> str:
@@ -273,3 +275,52 @@ def test_an_artifact_on_a_finer_grid_is_tracked_at_the_policy_rate(wave_clip, tm
     assert (
         warmstart_eta0(TrainConfig(warmstart=str(folder)), track_task((str(folder),))) is not None
     )
+
+
+@pytest.mark.parametrize("simulator", ["env", "sim2sim"])
+def test_actions_around_the_reference_follow_it_at_zero_action(wave_clip, tmp_path, simulator):
+    """``actions_around_reference``: PD targets q_ref + scale a, so zero action follows the waving
+    shoulders, in the training env and in sim2sim from the bundle; around the standing pose it does
+    not; a task without reference joints refuses the option."""
+    from test_sim2sim import command_term, export_neutral_policy
+
+    from rl.sim2sim import Sim2SimConfig, run_sim2sim
+
+    def tracking_error(around: bool) -> float:
+        task = dataclasses.replace(quiet(track_task((wave_clip,))), actions_around_reference=around)
+        env = make_env(task, 2, num_threads=1)
+        try:
+            if simulator == "env":
+                env.command_gen.for_evaluation()
+                env.reset_envs(torch.arange(2))
+                ref = env.command_gen.reference_joint_pos_rad()
+                assert (
+                    torch.allclose(env.joint_targets_to_actions(ref), torch.zeros(2, 29)) == around
+                )
+                errors = []
+                for _ in range(60):
+                    env.step(torch.zeros(2, 35))
+                    s = env.env_state
+                    err = s.joint_pos_rad - s.targets["joint_pos_rad"]
+                    errors.append(float(err[:, ARMS].abs().mean()))
+                return float(np.mean(errors))
+            folder = tmp_path / f"around_{around}"
+            folder.mkdir()
+            bundle = export_neutral_policy(env, folder)
+            assert ("action_base_command_columns" in bundle["control"]) == around
+            seen: list[np.ndarray] = []
+            run_sim2sim(folder, task, 60, Sim2SimConfig(num_envs=2, seed=1), on_step=seen.append)
+        finally:
+            env.close()
+        columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}
+        start = command_term(bundle)["columns"][0]
+        default = np.array([j["default_pos_rad"] for j in bundle["joints"]])
+        # the joints seen at step k + 1 against the reference the command of step k targeted
+        q = np.stack([o[:, slice(*columns["joint_pos"])] + default for o in seen[1:]])
+        q_ref = np.stack([o[:, start : start + 29] for o in seen[:-1]])
+        return float(np.abs(q - q_ref)[..., ARMS].mean())
+
+    around, stand = tracking_error(True), tracking_error(False)
+    assert around < 0.25 * stand, (around, stand)  # stand: the 0.6 rad wave, untracked
+    with pytest.raises(ValueError, match="actions_around_reference needs a command"):
+        make_env(dataclasses.replace(quiet(get_task("stand")), actions_around_reference=True), 1)

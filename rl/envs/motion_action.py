@@ -1,5 +1,5 @@
-"""The motion half of the action as the env applies it: joint PD targets around the standing pose
-(the env's motion-action part)."""
+"""The motion half of the action as the env applies it: joint PD targets around the standing pose,
+or around a reference pose the caller gives each step (the env's motion-action part)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,10 @@ from robots import g1
 
 
 class MotionAction:
-    """actions[:, :29] = a (N, 29) [-]: joint PD targets ``stand + ACTION_SCALE_RAD * a`` [rad];
-    the action of this step and of the previous one (what observations and rewards read)."""
+    """actions[:, :29] = a (N, 29) [-]: joint PD targets ``base + ACTION_SCALE_RAD * a`` [rad], with
+    ``base`` the standing pose or the (N, 29) pose given with the action (a tracking task's
+    reference joints); the action of this step and of the previous one (what observations and
+    rewards read)."""
 
     def __init__(self, num_envs: int, device: torch.device | str = "cpu") -> None:
         """Both actions start at 0 (the standing pose); every tensor lives on ``device``."""
@@ -22,18 +24,23 @@ class MotionAction:
         self.action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
         self.last_action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
 
-    def apply(self, action: torch.Tensor) -> torch.Tensor:
-        """Take this step's action (N, 29); returns the PD targets (N, 29) [rad]."""
+    def apply(self, action: torch.Tensor, base_rad: torch.Tensor | None = None) -> torch.Tensor:
+        """Take this step's action (N, 29); returns the PD targets (N, 29) [rad] around
+        ``base_rad`` (N, 29) [rad] (``None``: the standing pose)."""
         self.action = action
-        return self.stand_rad + self.scale * action
+        return (self.stand_rad if base_rad is None else base_rad) + self.scale * action
 
     def end_step(self) -> None:
         """This step's action becomes the last one."""
         self.last_action = self.action.clone()
 
-    def to_actions(self, joint_pos_rad: torch.Tensor) -> torch.Tensor:
-        """The actions (N, 29) whose PD targets are ``joint_pos_rad`` (N, 29) [rad]."""
-        return (joint_pos_rad.float() - self.stand_rad) / self.scale
+    def to_actions(
+        self, joint_pos_rad: torch.Tensor, base_rad: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """The actions (N, 29) whose PD targets around ``base_rad`` (as in :meth:`apply`) are
+        ``joint_pos_rad`` (N, 29) [rad]."""
+        base = self.stand_rad if base_rad is None else base_rad.float()
+        return (joint_pos_rad.float() - base) / self.scale
 
     def reset(self, env_ids: torch.Tensor) -> None:
         """Zero both actions of ``env_ids`` (M,)."""

@@ -162,6 +162,9 @@ class TaskConfig:
     )  # phase machine config (has names, build)
     skill: Any = field(default_factory=SurvivalSkillConfig)  # skill-progress config (has build)
     less_assist_weight: float = 1.0  # weight of the less-assist reward once switched on [-]
+    # Joint PD targets around the command's reference joints (q_ref + scale a), not around the
+    # standing pose: zero action follows the reference (a tracking task's command must give it).
+    actions_around_reference: bool = False
     evaluation: Any = (
         None  # task-specific eval config (build(env) -> evaluator); None: generic eval
     )

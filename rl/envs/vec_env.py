@@ -105,6 +105,12 @@ class G1VecEnv(VecEnv):
             "joint_pos_limits_rad": torch.as_tensor(self.layout.joint_range_rad).float().to(dev),
         }
         self.task_components = TaskComponents(task, n, self.max_episode_length, gen, dev)
+        if task.actions_around_reference and self.command_gen.reference_joint_pos_rad() is None:
+            raise ValueError(
+                f"task '{task.name}': actions_around_reference needs a command with reference "
+                f"joints (a tracking task's), but its command is {type(self.command_gen).__name__}; "
+                "drop --task-actions-around-reference"
+            )
         self.reset_envs(torch.arange(n, device=dev))
 
     # ---------------------------------------------------------------- what other code reads
@@ -165,7 +171,7 @@ class G1VecEnv(VecEnv):
 
     def joint_targets_to_actions(self, joint_pos_rad: torch.Tensor) -> torch.Tensor:
         """The motion actions (N, 29) whose PD targets are ``joint_pos_rad`` (N, 29) [rad]."""
-        return self.motion.to_actions(joint_pos_rad)
+        return self.motion.to_actions(joint_pos_rad, self._action_base())
 
     def reset_envs(self, env_ids: torch.Tensor) -> TensorDict:
         """Start new episodes for ``env_ids`` (M,) now: the task's initial-state distribution,
@@ -272,10 +278,17 @@ class G1VecEnv(VecEnv):
         if nonfinite:
             actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
         actions = actions.clamp(-self.cfg.clip_actions, self.cfg.clip_actions)
-        targets = self.motion.apply(actions[:, : g1.NUM_JOINTS])
+        targets = self.motion.apply(actions[:, : g1.NUM_JOINTS], self._action_base())
         self.assist.apply(actions[:, g1.NUM_JOINTS :], self.phase)
         self.physics.set_controls(targets, self.assist.to_world(self.physics.qpos[:, 3:7].float()))
         return nonfinite
+
+    def _action_base(self) -> torch.Tensor | None:
+        """The pose (N, 29) [rad] the joint actions are relative to this step: the command's
+        reference joints where the task asks for it, else ``None`` (the standing pose)."""
+        if not self.task.actions_around_reference:
+            return None
+        return self.command_gen.reference_joint_pos_rad()
 
     def _advance_task(self, state: EnvState) -> None:
         """Phase and command from the state after the step (and resets); ``state`` gets them, the

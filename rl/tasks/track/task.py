@@ -39,6 +39,8 @@ TRACK = TaskConfig(
         RewardTerm("body_orientation", terms.body_orientation, weight=1.0, params={"std": 0.4}),
         RewardTerm("body_lin_vel", terms.body_linear_velocity, weight=1.0, params={"std": 1.0}),
         RewardTerm("body_ang_vel", terms.body_angular_velocity, weight=1.0, params={"std": 3.14}),
+        # Off in whole_body_tracking's recipe; --task-reward-weight joint_position=W turns it on.
+        RewardTerm("joint_position", terms.joint_position, weight=0.0, params={"std": 0.2}),
         RewardTerm("action_rate", rewards.action_rate_l2, weight=-0.1),
         RewardTerm("joint_limits", rewards.joint_pos_limits, weight=-10.0),
         RewardTerm("link_contacts", rewards.link_ground_contact, weight=-0.1),

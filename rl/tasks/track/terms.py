@@ -154,6 +154,13 @@ def body_angular_velocity(s: EnvState, std: float = 3.14) -> torch.Tensor:
     return _exp(err.square().sum(-1).mean(-1), std)
 
 
+def joint_position(s: EnvState, std: float = 0.2) -> torch.Tensor:
+    """``exp(-mean_j (q_j - q_j_ref)^2 / std^2)`` over the 29 joints (N,) [-] (``std`` [rad]): steep
+    where the body kernels are flat (with std 0.2 it pays 0.61 at an RMS error of 0.14 rad, 0.04 at
+    0.36, about a statue's on a dance)."""
+    return _exp((s.joint_pos_rad - s.targets["joint_pos_rad"]).square().mean(-1), std)
+
+
 def joint_error_mean_abs(s: EnvState) -> torch.Tensor:
     """Mean absolute joint tracking error over the 29 joints (N,) [rad]."""
     return (s.joint_pos_rad - s.targets["joint_pos_rad"]).abs().mean(-1)
