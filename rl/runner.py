@@ -442,7 +442,11 @@ def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) 
             f"task '{task.name}' takes no {flag}: it tracks no reference motion of a user's; use "
             "--task track"
         )
-    return dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
+    task = dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
+    from rl.tasks.track.command import MotionCommandConfig
+    from rl.tasks.track.task import adapt_to_references
+
+    return adapt_to_references(task) if isinstance(task.commands, MotionCommandConfig) else task
 
 
 def with_task_defaults(cfg: TrainConfig) -> TrainConfig:

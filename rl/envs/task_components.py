@@ -81,10 +81,13 @@ class TaskComponents:
         self.alone_skill.on_episodes_end(env_ids[lone], time_outs[lone], lived_steps[lone], state)
 
     def update(self, state: EnvState, dt_s: float) -> None:
-        """Phase and command of the state after a step of ``dt_s`` [s] (0 after a reset)."""
-        self.phase = self.phase_machine.update(state)
+        """Command and phase of the state after a step of ``dt_s`` [s] (0 after a reset). The
+        phase machine sees the command's new targets (a tracking task's phases are its target
+        frame's); ``state.command`` is still the one the step's action saw."""
         self.command = self.command_gen.compute(state, dt_s)
         self.targets = self.command_gen.targets()
+        state.targets = self.targets
+        self.phase = self.phase_machine.update(state)
 
     def time_outs(self) -> torch.Tensor:
         """(N,) bool: episodes the command ends this step (its reference has run out)."""

@@ -109,7 +109,7 @@ class ClipLibrary:
             lengths.append(ref.q.shape[0])
             qpos.append(pin_to_mj_qpos(ref.q))
             qvel.append(pin_to_mj_qvel(ref.q, ref.v))
-            shift.append(heights.min(axis=1) - stand_floor)
+            shift.append(grounded_shift(heights.min(axis=1) - stand_floor, ref.contacts))
         qpos_all, qvel_all = np.concatenate(qpos), np.concatenate(qvel)
         return cls(
             names=tuple(names),
@@ -121,6 +121,20 @@ class ClipLibrary:
             length=torch.tensor(lengths),
             dt_s=step_dt_s,
         )
+
+
+def grounded_shift(shift_m: np.ndarray, contacts: np.ndarray) -> np.ndarray:
+    """Per frame (F,), the floor shift of the nearest frame with a sole in contact (``contacts``
+    (F, 2) bool): a frame in the air (a jump, a flip) is lowered as the ground frames around it
+    are, not until its soles touch the floor. Unchanged where every frame or none is grounded."""
+    grounded = np.flatnonzero(np.asarray(contacts).any(axis=1))
+    if grounded.size in (0, shift_m.shape[0]):
+        return shift_m
+    frames = np.arange(shift_m.shape[0])
+    right = grounded[np.clip(np.searchsorted(grounded, frames), 0, grounded.size - 1)]
+    left = grounded[np.clip(np.searchsorted(grounded, frames) - 1, 0, None)]
+    nearest = np.where(np.abs(frames - left) <= np.abs(right - frames), left, right)
+    return shift_m[nearest]
 
 
 def frame_commands(qpos: np.ndarray, qvel: np.ndarray, dt_s: float) -> torch.Tensor:

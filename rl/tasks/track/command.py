@@ -42,6 +42,7 @@ class MotionCommandConfig:
     bin_s: float = 1.0  # adaptive sampling bin length [s]
     uniform_share: float = 0.3  # share of start draws spread uniformly over the bins [-]
     failure_ema: float = 0.001  # per-step weight of new failures in each bin's moving count [-]
+    hold_s: float = 0.0  # each reference's first and last frames held still this long [s]
 
     def __post_init__(self) -> None:
         if self.frames:  # checked here; Pinocchio is imported only where a segment is given
@@ -55,6 +56,8 @@ class MotionCommandConfig:
             )
         if self.bin_s <= 0:
             raise ValueError(f"tracking bin_s must be > 0 s, got {self.bin_s}")
+        if not 0.0 <= self.hold_s <= 10.0:
+            raise ValueError(f"tracking hold_s must be in [0, 10] s, got {self.hold_s}")
 
     def build(self, num_envs: int, generator: torch.Generator) -> MotionCommand:
         """The live command (loads the references once per process)."""
@@ -94,11 +97,13 @@ class MotionCommand(ClipTrackingCommand):
         self._ended_bin = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self.evaluation = False
         self._targets: dict[str, torch.Tensor] = {}
+        self._phase = lib.phase.to(dev)
 
     def _load_library(self, cfg: Any) -> Any:
         from optimal_control.reference_sources import parse_frames
 
-        self.motion = motion_library(cfg.sources, parse_frames(cfg.frames), cfg.step_dt_s)
+        frames = parse_frames(cfg.frames)
+        self.motion = motion_library(cfg.sources, frames, cfg.step_dt_s, cfg.hold_s)
         return self.motion.clips
 
     # ------------------------------------------------------------------------------ sampling
@@ -183,6 +188,7 @@ class MotionCommand(ClipTrackingCommand):
         targets["body_pos_w"] = targets["body_pos_w"].clone()
         targets["body_pos_w"][..., 2] += self.z_offset_m.float().unsqueeze(-1)
         targets["joint_pos_rad"] = self._joint[nxt, : g1.NUM_JOINTS]
+        targets["phase"] = self._phase[nxt]
         self._targets = targets
         anchor = anchor_command(
             state.body_pos_w[:, ANCHOR],
@@ -223,6 +229,11 @@ class MotionCommand(ClipTrackingCommand):
                 from_robot=True,
             ),
         )  # fmt: skip
+
+    def reference_time_s(self) -> torch.Tensor:
+        """Per env, the time of its current frame along its reference as loaded (N,) [s]: the
+        held frames before it come first, at negative times (an artifact's coach follows it)."""
+        return super().reference_time_s() - self.motion.hold_frames * self.cfg.step_dt_s
 
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""

@@ -69,6 +69,53 @@ def at_policy_rate(ref, step_dt_s: float):
     ).validate()  # fmt: skip
 
 
+def hold_ends(ref, hold_s: float):
+    """``ref`` with its first and last frames held, at rest, for ``hold_s`` [s] before and after
+    it (a flip's standing seconds); unchanged for 0. Held frames keep the end frames' contacts and
+    phases."""
+    from optimal_control.reference import Reference
+
+    n = round(hold_s / ref.dt)
+    if n <= 0:
+        return ref
+
+    def pad(x: np.ndarray, rest: bool) -> np.ndarray:
+        first, last = (np.zeros_like(x[:1]), np.zeros_like(x[-1:])) if rest else (x[:1], x[-1:])
+        return np.concatenate([np.repeat(first, n, 0), x, np.repeat(last, n, 0)])
+
+    frames = ref.num_frames + 2 * n
+    return Reference(
+        time_s=ref.time_s[0] + np.arange(frames) * ref.dt, q=pad(ref.q, False),
+        v=pad(ref.v, True), a=pad(ref.a, True), contacts=pad(ref.contacts, False),
+        phase=pad(ref.phase, False), phase_names=ref.phase_names, dt=ref.dt, name=ref.name,
+    ).validate()  # fmt: skip
+
+
+def reference_phase_names(refs: list) -> tuple[str, ...]:
+    """The phase names the references share ((): they differ, so no phase is read from them)."""
+    names = {tuple(r.phase_names) for r in refs}
+    return next(iter(names)) if len(names) == 1 else ()
+
+
+def pitch_increment_rad(q_from: torch.Tensor, q_to: torch.Tensor) -> torch.Tensor:
+    """The signed rotation about the body's own y axis from orientations ``q_from`` to ``q_to``
+    (M, 4) w x y z, the short way round (M,) [rad]."""
+    from rl.envs.state import quat_multiply
+    from rl.tasks.track.terms import quat_conjugate
+
+    rel = quat_multiply(quat_conjugate(q_from), q_to)
+    rel = rel * torch.where(rel[:, :1] < 0, -1.0, 1.0)
+    sin_half = rel[:, 1:].norm(dim=-1)
+    return 2 * torch.atan2(sin_half, rel[:, 0]) * rel[:, 2] / sin_half.clamp_min(1e-12)
+
+
+def pitch_turn_rad(quat_wxyz: np.ndarray | torch.Tensor) -> float:
+    """The pitch turn summed over consecutive orientations (F, 4) w x y z [rad]
+    (:func:`pitch_increment_rad`): -2 pi for a backflip, about 0 for a dance."""
+    q = torch.as_tensor(np.asarray(quat_wxyz), dtype=torch.float64)
+    return float(pitch_increment_rad(q[:-1], q[1:]).sum()) if q.shape[0] > 1 else 0.0
+
+
 @dataclass
 class MotionLibrary:
     """A :class:`ClipLibrary` (frames, floor shifts, start / length per reference) plus, per
@@ -82,20 +129,33 @@ class MotionLibrary:
     body_ang_vel_w: torch.Tensor  # (F, K, 3) [rad/s]
     joint_pos_rad: torch.Tensor  # (F, 29)
     joint_vel_rps: torch.Tensor  # (F, 29)
+    phase: torch.Tensor  # (F,) long, each frame's phase in ``phase_names`` (0 where none)
+    phase_names: tuple[str, ...]  # the references' shared phase names; (): they differ
+    hold_frames: int  # frames held still before (and after) each reference [-]
 
     @classmethod
     def load(
-        cls, sources: tuple[str, ...], frames: tuple[int, int] | None, step_dt_s: float
+        cls,
+        sources: tuple[str, ...],
+        frames: tuple[int, int] | None,
+        step_dt_s: float,
+        hold_s: float = 0.0,
     ) -> MotionLibrary:
-        """Load every source (and segment); kinematics of the tracked links at every frame."""
+        """Load every source (and segment), its ends held ``hold_s`` [s] (:func:`hold_ends`);
+        kinematics of the tracked links at every frame."""
         if not sources:
             raise ValueError("the tracking task needs at least one reference (--reference PATH)")
-        refs = [load_track_reference(s, frames, step_dt_s) for s in sources]
+        refs = [hold_ends(load_track_reference(s, frames, step_dt_s), hold_s) for s in sources]
         clips = ClipLibrary.from_references(tuple(sources), refs, step_dt_s)
         pos, quat, lin, ang = link_kinematics(clips.qpos, clips.qvel)
         qpos = torch.as_tensor(clips.qpos).float()
         qvel = torch.as_tensor(clips.qvel).float()
-        return cls(clips, pos, quat, lin, ang, qpos[:, 7:], qvel[:, 6:])
+        names = reference_phase_names(refs)
+        phase = np.concatenate([r.phase for r in refs]) if names else np.zeros(len(clips.qpos))
+        return cls(
+            clips, pos, quat, lin, ang, qpos[:, 7:], qvel[:, 6:],
+            torch.as_tensor(phase, dtype=torch.long), names, round(hold_s / step_dt_s),
+        )  # fmt: skip
 
 
 def link_kinematics(qpos: np.ndarray, qvel: np.ndarray, bodies: tuple[str, ...] = TRACKED_BODIES):
@@ -122,10 +182,13 @@ _LIBRARIES: dict[tuple, MotionLibrary] = {}
 
 
 def motion_library(
-    sources: tuple[str, ...], frames: tuple[int, int] | None, step_dt_s: float
+    sources: tuple[str, ...],
+    frames: tuple[int, int] | None,
+    step_dt_s: float,
+    hold_s: float = 0.0,
 ) -> MotionLibrary:
-    """The (per-process cached) library of ``sources`` and ``frames``."""
-    key = (tuple(sources), frames, float(step_dt_s))
+    """The (per-process cached) library of ``sources``, ``frames`` and ``hold_s``."""
+    key = (tuple(sources), frames, float(step_dt_s), float(hold_s))
     if key not in _LIBRARIES:
-        _LIBRARIES[key] = MotionLibrary.load(key[0], frames, step_dt_s)
+        _LIBRARIES[key] = MotionLibrary.load(key[0], frames, step_dt_s, hold_s)
     return _LIBRARIES[key]

@@ -83,6 +83,31 @@ def track_task(
     )
 
 
+def adapt_to_references(task: TaskConfig) -> TaskConfig:
+    """A tracking ``task`` set up for the references it tracks: their phases where they share
+    more than one (an oracle artifact's; the bound row repeated per phase), and the flip setup
+    (:func:`rl.tasks.track.flip.for_flips`) where every reference turns over."""
+    import math
+
+    from optimal_control.reference_sources import parse_frames
+    from rl.tasks.track.flip import for_flips
+    from rl.tasks.track.library import load_track_reference, pitch_turn_rad, reference_phase_names
+    from rl.tasks.track.phases import ReferencePhaseConfig
+
+    cmd = task.commands
+    refs = [load_track_reference(s, parse_frames(cmd.frames), cmd.step_dt_s) for s in cmd.sources]
+    names = reference_phase_names(refs)
+    if len(names) > 1 and isinstance(task.phases, SinglePhaseConfig):
+        row = tuple(max(col) for col in zip(*task.assist_bound, strict=True))
+        task = dataclasses.replace(
+            task, phases=ReferencePhaseConfig(names=names), assist_bound=(row,) * len(names)
+        )
+    turns = [pitch_turn_rad(r.q[:, [6, 3, 4, 5]]) for r in refs]  # Pinocchio x y z w -> w x y z
+    if all(abs(t) > math.pi for t in turns):
+        task = for_flips(task, refs, turns[0])
+    return task
+
+
 DANCE = dataclasses.replace(
     TRACK,
     name="dance",

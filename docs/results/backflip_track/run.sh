@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# "The backflip, learned by tracking the oracle's flip" (issue 34): the track task on a
+# `solve-backflip` artifact (its phases read from the artifact, its ends held 1.5 s standing,
+# reference state initialisation along the flip, evaluation from standing with the flip judge of
+# rl/tasks/track/flip.py), PD targets around the reference (--task-actions-around-reference),
+# 128 envs x 24 steps, 9766 iterations = 30.0 M env steps, evaluated alone every 60 iterations
+# (32 fresh envs from standing). One physics and one torch thread per run.
+# Usage: bash docs/results/backflip_track/run.sh [oracle|baseline|a2cf_warm]   (SEED=0, OUT=runs/backflip_track)
+# Continue a run cut off by the end of a session: a2cf-mb train --resume "$OUT/<run>"
+set -euo pipefail
+OUT=${OUT:-runs/backflip_track}
+seed=${SEED:-0}
+export OMP_NUM_THREADS=1
+common=(--task track --reference "$OUT/oracle" --task-actions-around-reference --num-envs 128
+        --env-num-threads 1 --save-interval 60 --eval-interval 60 --iterations 9766 --out "$OUT")
+case "${1:-baseline}" in
+oracle)  # the flip and its wrenches (about 3 min cold)
+  a2cf-mb solve-backflip --oracle-out "$OUT/oracle" --no-oracle-progress ;;
+baseline)  # no help
+  a2cf-mb train "${common[@]}" --mode baseline --seed "$seed" --run-name "flip_baseline_s$seed" ;;
+a2cf_warm)  # A2CF, the force head warm-started from the artifact's coach, eta0 per phase from it
+  a2cf-mb train "${common[@]}" --mode a2cf --warmstart "$OUT/oracle" --seed "$seed" \
+    --run-name "flip_a2cfwarm_s$seed" ;;
+*) echo "unknown case $1" >&2; exit 2 ;;
+esac

@@ -1,0 +1,130 @@
+"""Tracking a flip: a reference that turns over is held standing at both ends, its phases drive the
+env's phase (so eta0 and the curriculum work per phase), and the flip judge lands a robot that
+follows the flip exactly while failing one that does not."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+from test_track_task import _on_reference
+
+from rl.alone_eval import rollout_alone
+from rl.registry import get_task, make_env
+from rl.runner import with_references
+from rl.tasks.config import quiet
+from rl.tasks.dance.clips import grounded_shift
+from rl.tasks.track.flip import FLIP_HOLD_S, FlipEvaluationConfig
+from rl.tasks.track.library import hold_ends, pitch_turn_rad
+from rl.tasks.track.phases import ReferencePhaseConfig
+
+PHASES = ("stand", "air", "land")
+
+
+@pytest.fixture(scope="module")
+def flip_reference(g1_pin):
+    """A 50 Hz backflip of the standing robot, rigid: 0.4 s standing, 0.7 s in the air (the pelvis
+    rises 0.7 m and turns -2 pi about its pitch axis), 0.4 s standing again."""
+    from optimal_control.motion_clip import reference_from_configurations
+
+    dt, stand, air = 0.02, 20, 35
+    frames = 2 * stand + air
+    q = np.tile(g1_pin.q_stand, (frames, 1))
+    u = np.clip((np.arange(frames) - stand) / air, 0.0, 1.0)
+    pitch = -2 * math.pi * (3 * u**2 - 2 * u**3)
+    q[:, 2] += 0.7 * 4 * u * (1 - u)
+    q[:, 3:7] = np.stack(
+        [np.zeros(frames), np.sin(pitch / 2), np.zeros(frames), np.cos(pitch / 2)], axis=1
+    )
+    contacts = np.repeat(((u <= 0) | (u >= 1))[:, None], 2, axis=1)
+    phase = np.where(u <= 0, 0, np.where(u >= 1, 2, 1))
+    phase[stand + air :] = 2
+    ref = reference_from_configurations(q, dt, contacts=contacts, phase_names=PHASES)
+    return dataclasses.replace(ref, phase=phase.astype(np.int64)).validate()
+
+
+@pytest.fixture(scope="module")
+def flip_artifact(flip_reference, tmp_path_factory) -> str:
+    from optimal_control.oracle import OracleConfig, solve_reference_oracle
+
+    out = tmp_path_factory.mktemp("flip") / "oracle"
+    cfg = OracleConfig(alphas=(1.0,), video=False, progress=False, out=str(out))
+    _, folder = solve_reference_oracle("backflip", flip_reference, cfg, {})
+    return str(folder)
+
+
+def test_held_ends_and_the_shift_of_frames_in_the_air(flip_reference) -> None:
+    held = hold_ends(flip_reference, 0.5)
+    assert held.num_frames == flip_reference.num_frames + 50
+    np.testing.assert_allclose(held.q[:25], np.repeat(flip_reference.q[:1], 25, 0))
+    assert not held.v[:25].any() and not held.v[-25:].any()
+    assert (held.phase[:25] == 0).all() and (held.phase[-25:] == 2).all()
+    assert hold_ends(flip_reference, 0.0) is flip_reference
+    # a frame in the air is lowered as the ground frames beside it are, not onto the floor
+    shift = np.array([0.0, 0.0, 0.5, 0.7, 0.5, 0.01])
+    contacts = np.array([[1, 1], [1, 1], [0, 0], [0, 0], [0, 0], [1, 1]], dtype=bool)
+    np.testing.assert_allclose(
+        grounded_shift(shift, contacts), [0, 0, 0, 0, 0.01, 0.01]
+    )  # a tie: the earlier
+    np.testing.assert_allclose(grounded_shift(shift, np.ones((6, 2), bool)), shift)
+
+
+def test_the_pitch_turn_of_a_flip_and_of_standing(flip_reference) -> None:
+    quat = flip_reference.q[:, [6, 3, 4, 5]]
+    assert pitch_turn_rad(quat) == pytest.approx(-2 * math.pi, abs=1e-6)
+    assert pitch_turn_rad(np.tile(quat[:1], (10, 1))) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_flip_artifact_sets_up_the_task_and_drives_its_phases(flip_artifact) -> None:
+    task = with_references(get_task("track"), (flip_artifact,), "")
+    assert isinstance(task.phases, ReferencePhaseConfig) and task.phase_names == PHASES
+    assert len(task.assist_bound) == 3 and task.commands.hold_s == FLIP_HOLD_S
+    assert isinstance(task.evaluation, FlipEvaluationConfig) and task.evaluation.direction == -1
+    assert task.target.metric == "flips_failed"
+    env = make_env(quiet(task), 2, num_threads=1)
+    try:
+        cmd, lib = env.command_gen, env.command_gen.motion
+        assert lib.hold_frames == round(FLIP_HOLD_S / 0.02)
+        cmd.for_evaluation()
+        env.reset_envs(torch.arange(2))
+        assert float(cmd.reference_time_s()[0]) == pytest.approx(-FLIP_HOLD_S)
+        seen = set()
+        for _ in range(int(lib.clips.length[0]) - 2):
+            _on_reference(env, ahead=0)
+            actions = torch.zeros(2, 35)
+            actions[:, :29] = env.joint_targets_to_actions(cmd.reference_joint_pos_rad())
+            _, _, dones, _ = env.step(actions)
+            if dones.any():
+                break
+            assert torch.equal(env.phase, lib.phase[cmd.frame(ahead=1)])  # the target frame's
+            seen.update(env.phase.tolist())
+        assert seen == {0, 1, 2}
+    finally:
+        env.close()
+    # the stand task has no reference: its single phase stays
+    assert with_references(get_task("track"), (), "") is get_task("track")
+
+
+def test_the_flip_judge_lands_the_reference_and_fails_a_statue(flip_artifact) -> None:
+    task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
+    env, still = make_env(task, 2, num_threads=1), make_env(task, 2, num_threads=1)
+    try:
+
+        def follower(obs):  # put the robot exactly on the reference, then aim at the next frame
+            _on_reference(env, ahead=0)
+            return env.joint_targets_to_actions(env.command_gen.reference_joint_pos_rad())
+
+        follows = rollout_alone(env, follower)["task_metrics"]
+        stand = still.joint_targets_to_actions(still.motion.stand_rad.expand(2, 29))
+        statue = rollout_alone(still, lambda obs: stand)["task_metrics"]
+    finally:
+        env.close()
+        still.close()
+    assert follows["turn_rad_mean"] == pytest.approx(2 * math.pi, abs=0.3)
+    assert follows["flips_landed"] == 1.0 and follows["flips_failed"] == 0.0
+    assert follows["phase_reached"]["land"] == 1.0
+    assert statue["flips_landed"] == 0.0 and statue["full_turns"] == 0.0
+    assert statue["phase_reached"]["land"] < 1.0 or statue["upright_still_at_end"] == 1.0
