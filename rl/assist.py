@@ -39,6 +39,13 @@ def assist_wrench(raw: torch.Tensor, bound: torch.Tensor, mask: torch.Tensor) ->
     return mask * squash_wrench(raw, bound)
 
 
+def raw_from_wrench(wrench: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
+    """The raw head output whose squash gives ``wrench`` (atanh of the bound fraction, clipped
+    to 0.995 of the bound): what a coach's wrench is as an assist action."""
+    ratio = torch.where(bound > 0, wrench / bound.clamp_min(1e-9), 0.0).clamp(-0.995, 0.995)
+    return torch.atanh(ratio)
+
+
 class AssistState:
     """The assist settings the runner changes between iterations, and the wrench they produce.
 

@@ -490,6 +490,10 @@ def build_training(
         env.set_assist_enabled(False)
         env.set_less_assist_reward(False)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
+    if mode.coach_help:
+        from rl.coach_help import CoachHelpEnv
+
+        learner_env = CoachHelpEnv(env, cfg.coach)
     rsl_cfg = rsl_rl_config(cfg, mode)
     device = rank_device(cfg.device)
     runner = A2CFRunner(

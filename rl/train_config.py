@@ -11,6 +11,7 @@ from typing import Any
 from rl.agents.modes import get_mode
 from rl.alone_eval import AloneEvalConfig
 from rl.assist import DEFAULT_RANDOM_MASK_PROB
+from rl.coach_help import CoachHelpConfig
 from rl.config_bounds import check_range
 from rl.curriculum import CurriculumConfig
 from rl.envs.config import EnvConfig
@@ -125,6 +126,9 @@ class TrainConfig:
     distill: WarmStartConfig = field(
         default_factory=WarmStartConfig
     )  # DAgger rounds of the warm start
+    coach: CoachHelpConfig = field(
+        default_factory=CoachHelpConfig
+    )  # mode coach: the oracle artifact's coach as the help, scaled by the failure rate
     reference: tuple[
         str, ...
     ] = ()  # motions a tracking task tracks, one per episode: clip files (LAFAN1 G1 CSV, NPZ, whole_body_tracking/mjlab motion NPZ), oracle artifact folders or "builtin"; empty: the task's own [-]
@@ -153,6 +157,11 @@ class TrainConfig:
             )
         if not 0.0 <= self.random_mask_prob < 1.0:
             raise ValueError(f"--random-mask-prob must be in [0, 1), got {self.random_mask_prob}")
+        if get_mode(self.mode).coach_help != bool(self.coach.source):
+            raise ValueError(
+                "mode 'coach' needs --coach-source ARTIFACT (the oracle artifact whose coach "
+                "helps); --coach-source is only for mode 'coach'"
+            )
         if self.warmstart and not get_mode(self.mode).assist:
             raise ValueError(
                 f"--warmstart needs an assist head; mode '{self.mode}' has none (use a2cf)"

@@ -24,6 +24,7 @@ import torch
 from tensordict import TensorDict
 
 from rl.agents.models import A2CFActor
+from rl.assist import raw_from_wrench
 from rl.curriculum import WRENCH_AXES
 from rl.envs.vec_env import G1VecEnv
 from robots import g1
@@ -65,12 +66,6 @@ class WarmStartConfig:
             raise ValueError(f"warm start held_out must be in (0, 1), got {self.held_out}")
         if self.assist_std <= 0:
             raise ValueError(f"warm start assist_std must be > 0, got {self.assist_std}")
-
-
-def _raw_from_wrench(wrench: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
-    """The raw head output whose squash gives ``wrench`` (atanh of the bound fraction, clipped)."""
-    ratio = torch.where(bound > 0, wrench / bound.clamp_min(1e-9), 0.0).clamp(-0.995, 0.995)
-    return torch.atanh(ratio)
 
 
 def _assist_mean(actor: A2CFActor, obs: TensorDict) -> torch.Tensor:
@@ -154,7 +149,7 @@ def distill_assist_head(
 
     def expert(actions, target, bound, rnd) -> None:
         if rnd == 0:
-            actions[:, g1.NUM_JOINTS :] = _raw_from_wrench(target, bound)
+            actions[:, g1.NUM_JOINTS :] = raw_from_wrench(target, bound)
 
     obs, target, bound, num = _dagger(
         actor, env, cfg, label, expert, lambda o: _assist_mean(actor, o), _loss,

@@ -49,7 +49,7 @@ def make_actor(output_dim: int = 35, privileged: bool = True) -> A2CFActor:
 
 
 def test_modes_table() -> None:
-    assert set(MODES) == {"baseline", "a2cf", "no-pi", "no-id", "no-rm"}
+    assert set(MODES) == {"baseline", "a2cf", "no-pi", "no-id", "no-rm", "coach"}
     assert not get_mode("baseline").assist
     assert get_mode("a2cf").assist_privileged and get_mode("a2cf").random_mask
     assert not get_mode("no-pi").assist_privileged

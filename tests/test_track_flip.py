@@ -128,3 +128,70 @@ def test_the_flip_judge_lands_the_reference_and_fails_a_statue(flip_artifact) ->
     assert follows["phase_reached"]["land"] == 1.0
     assert statue["flips_landed"] == 0.0 and statue["full_turns"] == 0.0
     assert statue["phase_reached"]["land"] < 1.0 or statue["upright_still_at_end"] == 1.0
+
+
+# --------------------------------------------------------------------------- mode coach (ZEST)
+def test_the_coach_scale_follows_the_failure_rate() -> None:
+    from rl.coach_help import CoachHelpConfig
+
+    cfg = CoachHelpConfig(source="x")
+    assert cfg.scale(1.0) == pytest.approx(0.6)  # failing: the most help
+    assert cfg.scale(0.6) == pytest.approx(0.5)
+    assert cfg.scale(0.2) == 0.0 and cfg.scale(0.0) == 0.0  # help ends at 20 % failures
+    with pytest.raises(ValueError, match="--coach-failure-floor"):
+        CoachHelpConfig(failure_floor=1.0)
+
+
+def test_mode_coach_needs_its_source_and_nothing_else_takes_it() -> None:
+    from rl.coach_help import CoachHelpConfig
+    from rl.train_config import TrainConfig
+
+    with pytest.raises(ValueError, match="--coach-source"):
+        TrainConfig(mode="coach")
+    with pytest.raises(ValueError, match="--coach-source"):
+        TrainConfig(mode="a2cf", coach=CoachHelpConfig(source="somewhere"))
+
+
+def test_mode_coach_applies_the_scaled_coach_and_resumes_exactly(flip_artifact, tmp_path) -> None:
+    """The applied wrench is beta x the coach's; beta follows the failures of finished episodes
+    (zero once they are rare); two iterations resumed to four equal four in one go."""
+    from test_training import PLAIN_KEYS, TINY_MODEL, TINY_PPO
+
+    from rl.coach_help import CoachHelpConfig, CoachHelpEnv
+    from rl.envs.config import EnvConfig
+    from rl.runner import train
+    from rl.train_config import TrainConfig
+
+    task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
+    env = make_env(task, 4, num_threads=1)
+    try:
+        helped = CoachHelpEnv(env, CoachHelpConfig(source=flip_artifact))
+        assert float(helped.beta[0]) == pytest.approx(0.6)  # no episode yet: failing
+        pushed = 0.0
+        for _ in range(40):  # the coach helps as needed: once the robots drift off the flip
+            expected = helped.coach(env) * helped.beta.unsqueeze(-1)
+            helped.step(torch.full((4, 29), 0.5))
+            torch.testing.assert_close(env.applied_wrench, expected, atol=1e-3, rtol=1e-2)
+            pushed += float(expected.abs().sum())
+        assert pushed > 0
+        helped.failures.push(torch.zeros(256))  # every recent episode succeeded
+        helped.beta[:] = helped.coach_cfg.scale(helped.failure_rate())
+        helped.step(torch.zeros(4, 29))
+        assert env.applied_wrench.abs().sum() == 0
+    finally:
+        env.close()
+
+    def config(name: str, iterations: int) -> TrainConfig:
+        return TrainConfig(
+            task="track", reference=(flip_artifact,), mode="coach",
+            coach=CoachHelpConfig(source=flip_artifact, window=8), env=EnvConfig(num_envs=4),
+            iterations=iterations, num_steps_per_env=16, out=str(tmp_path), run_name=name,
+            save_interval=1, ppo=TINY_PPO, model=TINY_MODEL, export_onnx=False,
+        )  # fmt: skip
+
+    whole = train(config("whole", 4), verbose=False)
+    part = train(config("part", 2), verbose=False)
+    resumed = train(TrainConfig(resume=str(part.run_dir), iterations=4), verbose=False)
+    a, b = whole.metrics["iterations"], resumed.metrics["iterations"]
+    for row_a, row_b in zip(a, b, strict=True):
+        assert {k: row_a[k] for k in PLAIN_KEYS} == {k: row_b[k] for k in PLAIN_KEYS}

@@ -7,6 +7,8 @@ no-pi      as a2cf, the assist head does not read the privileged observation
 no-id      as a2cf, identical initial bounds on x, y, z (mean of the per-axis eta0), force and
            moment separately
 no-rm      as a2cf, random-mask probability zeta = 0
+coach      no assist agent; the oracle artifact's coach (``--coach-source``) is the help, scaled by
+           the policy's failure rate until it is zero (ZEST's rule, :mod:`rl.coach_help`)
 ========== ======================================================================================
 """
 
@@ -30,6 +32,7 @@ class ModeSpec:
     assist_privileged: bool  # assist head reads the privileged observation (PI)
     identical_initial_bounds: bool  # same bound on x, y, z (ablation of ID)
     random_mask: bool  # drop wrench components with probability zeta (RM)
+    coach_help: bool = False  # the artifact's coach helps, scaled by the failure rate
 
 
 MODES: dict[str, ModeSpec] = {
@@ -69,6 +72,14 @@ MODES: dict[str, ModeSpec] = {
             assist_privileged=True,
             identical_initial_bounds=False,
             random_mask=False,
+        ),
+        ModeSpec(
+            "coach",
+            assist=False,
+            assist_privileged=False,
+            identical_initial_bounds=False,
+            random_mask=False,
+            coach_help=True,
         ),
     )
 }

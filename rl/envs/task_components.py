@@ -119,6 +119,7 @@ class TaskComponents:
         self.phase = state["phase"].to(self.device, copy=True)
         self.command = state["command"].to(self.device, copy=True)
         self.command_gen.load_state_dict(state["command_gen"])
+        self.targets = self.command_gen.targets()  # the restored command's (the next rewards')
         self.phase_machine.load_state_dict(state["phase_machine"])
         self.skill.load_state_dict(state["skill"])
         if self.alone_skill is not None and "alone_skill" in state:

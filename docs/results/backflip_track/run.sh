@@ -5,7 +5,7 @@
 # rl/tasks/track/flip.py), PD targets around the reference (--task-actions-around-reference),
 # 128 envs x 24 steps, 9766 iterations = 30.0 M env steps, evaluated alone every 60 iterations
 # (32 fresh envs from standing). One physics and one torch thread per run.
-# Usage: bash docs/results/backflip_track/run.sh [oracle|baseline|a2cf_warm]   (SEED=0, OUT=runs/backflip_track)
+# Usage: bash docs/results/backflip_track/run.sh [oracle|baseline|a2cf_warm|coach]   (SEED=0, OUT=runs/backflip_track)
 # Continue a run cut off by the end of a session: a2cf-mb train --resume "$OUT/<run>"
 set -euo pipefail
 OUT=${OUT:-runs/backflip_track}
@@ -21,5 +21,8 @@ baseline)  # no help
 a2cf_warm)  # A2CF, the force head warm-started from the artifact's coach, eta0 per phase from it
   a2cf-mb train "${common[@]}" --mode a2cf --warmstart "$OUT/oracle" --seed "$seed" \
     --run-name "flip_a2cfwarm_s$seed" ;;
+coach)  # the artifact's coach itself as the help, scaled by the failure rate (ZEST's rule)
+  a2cf-mb train "${common[@]}" --mode coach --coach-source "$OUT/oracle" --seed "$seed" \
+    --run-name "flip_coach_s$seed" ;;
 *) echo "unknown case $1" >&2; exit 2 ;;
 esac
