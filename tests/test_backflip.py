@@ -10,7 +10,7 @@ import pytest
 
 from optimal_control.backflip.audit import audit_solution
 from optimal_control.backflip.config import AIR_PHASE, BackflipConfig, tiny_hop_config
-from optimal_control.backflip.sagittal import NR, build_sagittal_model
+from optimal_control.backflip.sagittal import NR, build_sagittal_model, sagittal_model_for
 from optimal_control.backflip.solve import InfeasibleBackflipError, solve_backflip_to
 from optimal_control.backflip.trajectory import (
     LIMIT_RATIO_TOL,
@@ -131,6 +131,12 @@ def test_effort_limits_are_the_urdfs(model):
     np.testing.assert_array_equal(model.effort_limit_nm, urdf)
     for name in ("left_ankle_pitch_joint", "waist_pitch_joint"):
         assert model.effort_limit_nm[g1.JOINT_NAMES.index(name)] == pytest.approx(35.0)
+    # --actuator-effort-limits: the simulator's force ranges instead (50 N m there)
+    sim = sagittal_model_for(BackflipConfig(actuator_effort_limits=True))
+    np.testing.assert_array_equal(sim.effort_limit_nm, g1.EFFORT_LIMIT_NM)
+    for name in ("left_ankle_pitch_joint", "waist_pitch_joint"):
+        assert sim.effort_limit_nm[g1.JOINT_NAMES.index(name)] == pytest.approx(50.0)
+    assert sagittal_model_for(BackflipConfig()) is build_sagittal_model()
 
 
 def test_bernstein_rows_bound_the_interpolant_between_knots():

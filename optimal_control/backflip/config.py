@@ -54,6 +54,9 @@ class BackflipConfig:
     max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]
     max_wrench_torque_nm: float = 200.0  # bound on each pelvis wrench torque component [Nm]
     forbid_wrench: bool = False  # if True the pelvis wrench is fixed to zero (no help allowed)
+    # plan within the simulator's actuator force ranges (robots.g1: 50 N m at the ankles and the
+    # waist roll/pitch, the two-motor linkages) instead of the URDF's effort limits (35 N m there)
+    actuator_effort_limits: bool = False
     # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2 [1/s]
     wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)
     midpoint_constraints: bool = True  # dynamics and torque limits also at interval midpoints

@@ -36,7 +36,12 @@ from optimal_control.backflip.playback import (
     play_flight,
     reference_centroidal,
 )
-from optimal_control.backflip.sagittal import MOVED_JOINTS, SagittalModel, build_sagittal_model
+from optimal_control.backflip.sagittal import (
+    MOVED_JOINTS,
+    SagittalModel,
+    build_sagittal_model,
+    sagittal_model_for,
+)
 from optimal_control.backflip.solve import (
     SolveResult,
     StaleCacheError,
@@ -225,7 +230,7 @@ def solve_backflip(
     folder = Path(oracle_cfg.out)
     # Failure files never go into an existing artifact (it would no longer match its manifest).
     failure_dir = folder if not folder.exists() else folder.with_name(folder.name + "-failed")
-    model = build_sagittal_model()
+    model = sagittal_model_for(cfg)
     warm = None
     warm_source = cfg.warm_start
     cached = cache_path(cfg) if cfg.cache_dir else None

@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -35,6 +36,9 @@ from optimal_control.casadi_dynamics import (
 )
 from robots import g1
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
+
+if TYPE_CHECKING:
+    from optimal_control.backflip.config import BackflipConfig
 
 MOVED_JOINTS: tuple[str, ...] = (
     "hip_pitch",
@@ -106,6 +110,18 @@ def _joint_columns() -> tuple[tuple[int, ...], ...]:
 def _rot_y(angle: ca.SX) -> ca.SX:
     c, s = ca.cos(angle), ca.sin(angle)
     return ca.vertcat(ca.horzcat(c, 0, s), ca.horzcat(0, 1, 0), ca.horzcat(-s, 0, c))
+
+
+def sagittal_model_for(cfg: BackflipConfig) -> SagittalModel:
+    """The sagittal model a :class:`~optimal_control.backflip.config.BackflipConfig` plans with:
+    the URDF's effort limits, or with ``cfg.actuator_effort_limits`` the MuJoCo actuators' force
+    ranges (``robots.g1.EFFORT_LIMIT_NM``, the limits the simulator applies)."""
+    model = build_sagittal_model()
+    if not cfg.actuator_effort_limits:
+        return model
+    return dataclasses.replace(
+        model, effort_limit_nm=np.asarray(g1.EFFORT_LIMIT_NM, dtype=float).copy()
+    )
 
 
 @lru_cache(maxsize=1)

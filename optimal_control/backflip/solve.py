@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from optimal_control.backflip.config import BackflipConfig
-from optimal_control.backflip.sagittal import SagittalModel, build_sagittal_model
+from optimal_control.backflip.sagittal import SagittalModel, sagittal_model_for
 from optimal_control.backflip.transcription import (
     Solution,
     Transcription,
@@ -256,7 +256,7 @@ def solve_backflip_to(
     cfg.validate()
     if warm_start is None and cfg.warm_start:  # read before the (slow) NLP build
         warm_start = load_solution(Path(cfg.warm_start).expanduser(), "--warm-start solution")
-    model = model or build_sagittal_model()
+    model = model or sagittal_model_for(cfg)
     t0 = time.perf_counter()
     tr = build_transcription(model, cfg)
     weights = list(cfg.wrench_weights)
@@ -444,7 +444,7 @@ def reuse_solution(
     cut re-applied, holds to :data:`REUSE_VIOLATION_TOL`; otherwise None (re-solve it).
     """
     cfg.validate()
-    model = model or build_sagittal_model()
+    model = model or sagittal_model_for(cfg)
     t0 = time.perf_counter()
     tr = build_transcription(model, cfg)
     if sol.r.shape[0] != tr.grid.num_knots:
