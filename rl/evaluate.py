@@ -177,13 +177,15 @@ def _require_exported_policy(run_dir: Path, exported: bool) -> None:
 
 
 def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
-    """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``
-    (a damaged checkpoint: :class:`~rl.run_folder.DamagedRunFileError` naming it)."""
+    """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``,
+    on the env's device (a damaged checkpoint: :class:`~rl.run_folder.DamagedRunFileError` naming
+    it)."""
     state = load_checkpoint(path)
     mode = get_mode(train_cfg.mode)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
+    cfg = rsl_rl_config(train_cfg, mode)
     with contextlib.redirect_stdout(io.StringIO()):
-        runner = OnPolicyRunner(learner_env, rsl_rl_config(train_cfg, mode), log_dir=None)
+        runner = OnPolicyRunner(learner_env, cfg, log_dir=None, device=str(env.device))
     runner.alg.load(state, {"actor": True}, strict=True)
     return runner.alg.get_policy().motion_policy().eval()
 
@@ -216,11 +218,12 @@ def _extend_video(
 ) -> None:
     """Append env 0's frames, across its resets, until the video has ``frames`` frames (a policy
     that falls at once still gets a video of several seconds: fall, respawn, fall)."""
-    zeros = torch.zeros(env.num_envs, ASSIST_ACTION_DIM)
+    zeros = torch.zeros(env.num_envs, ASSIST_ACTION_DIM, device=env.device)
     obs = env.get_observations()
+    shape = (env.num_envs, env.num_actions - ASSIST_ACTION_DIM)
     with torch.inference_mode():
         while len(video) < frames:
-            actions = policy(obs).reshape(env.num_envs, env.num_actions - ASSIST_ACTION_DIM)
+            actions = policy(obs).reshape(shape).to(env.device)  # the ONNX policy's are host's
             obs, _, _, _ = env.step(torch.cat([actions, zeros], dim=-1))
             video.record(env)
 

@@ -145,7 +145,9 @@ def learned_motion(run_dir: str | Path, env: G1VecEnv) -> tuple[MotionFn, str]:
         policy = OnnxMotionPolicy(onnx)
 
         def motion(env: G1VecEnv, obs: TensorDict) -> torch.Tensor:
-            return torch.from_numpy(policy(obs["policy"].numpy(), obs["history"].numpy()))
+            return torch.from_numpy(
+                policy(obs["policy"].cpu().numpy(), obs["history"].cpu().numpy())
+            )
 
         return motion, POLICY_FILE
     kept = sorted(
@@ -232,13 +234,13 @@ def rollout_reference(
             obs, _, dones, extras = env.step(actions)
             if evaluator is not None:
                 evaluator.on_step(env, active, dones, extras)
-            done = dones.bool()
-            fell |= active & done & ~extras["time_outs"].bool()
+            done = dones.bool().cpu()  # the traces and these flags are kept on the host
+            fell |= active & done & ~extras["time_outs"].bool().cpu()
             active &= ~done
-            q.append(env.env_state.joint_pos_rad.numpy().copy())
-            q_ref.append(target.numpy())
-            alive.append(active.numpy().copy())
-            wrench.append(env.applied_wrench.numpy().copy())
+            q.append(env.env_state.joint_pos_rad.cpu().numpy().copy())
+            q_ref.append(target.cpu().numpy())
+            alive.append(active.cpu().numpy().copy())
+            wrench.append(env.applied_wrench.cpu().numpy().copy())
             if not active.any():
                 break
     metrics: dict[str, Any] = {"survival_fraction": float((~fell).float().mean())}

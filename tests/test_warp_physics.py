@@ -9,15 +9,20 @@ derived fields, which changes contact softness slightly).
 
 The slow tests need the ``gpu`` extra (mujoco-warp) and compile Warp kernels once (~40 s+, cached
 under ~/.cache/warp). Run with ``CUDA_VISIBLE_DEVICES=""`` where no GPU is meant to be used;
-``A2CF_WARP_DEVICE=cuda`` runs the same checks on a GPU (``docs/results/gpu/run_gpu_check.sh``).
+``A2CF_WARP_DEVICE=cuda`` runs the same checks on a GPU (``docs/results/gpu/run_gpu_check.sh``):
+the Warp env's tensors then live on the GPU and the MuJoCo C env's on the host, so comparisons
+between them are made on host copies (:func:`assert_close_on_host`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import gc
 import importlib.util
 import os
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -60,6 +65,11 @@ def align(c: G1VecEnv, warp: G1VecEnv) -> None:
     c.state[:, lay.qvel] = warp.physics.qvel.double().cpu().numpy()
 
 
+def assert_close_on_host(actual: torch.Tensor, expected: torch.Tensor, **tolerances) -> None:
+    """``torch.testing.assert_close`` of host copies: the Warp env's tensors may be on a GPU."""
+    torch.testing.assert_close(actual.cpu(), expected.cpu(), **tolerances)
+
+
 def max_errors(c: G1VecEnv, warp: G1VecEnv) -> tuple[float, float]:
     """Max |qpos| and |qvel| differences between the backends."""
     dq = (c.physics.qpos - warp.physics.qpos.double().cpu()).abs().max()
@@ -80,16 +90,16 @@ def test_same_states_and_actions_give_the_same_trajectory(task: str) -> None:
             obs_w, rew_w, done_w, _ = warp.step(actions)
             dq, dv = max_errors(c, warp)
             assert dq < QPOS_ATOL and dv < QVEL_ATOL, (dq, dv)
-            torch.testing.assert_close(rew_w, rew_c, rtol=1e-4, atol=1e-4)
-            assert torch.equal(done_w, done_c)
-            torch.testing.assert_close(c.applied_wrench, warp.applied_wrench, rtol=1e-4, atol=1e-4)
+            assert_close_on_host(rew_w, rew_c, rtol=1e-4, atol=1e-4)
+            assert torch.equal(done_w.cpu(), done_c.cpu())
+            assert_close_on_host(warp.applied_wrench, c.applied_wrench, rtol=1e-4, atol=1e-4)
             sc, sw = c.env_state, warp.env_state
             # sole forces carry the solver's float32 error times the stiffness: ~0.1% of weight
-            torch.testing.assert_close(
+            assert_close_on_host(
                 sw.foot_contact_force_n, sc.foot_contact_force_n, rtol=1e-3, atol=0.5
             )
-            torch.testing.assert_close(sw.joint_torque_nm, sc.joint_torque_nm, rtol=1e-3, atol=1e-2)
-            torch.testing.assert_close(obs_w["policy"], obs_c["policy"], rtol=1e-3, atol=1e-3)
+            assert_close_on_host(sw.joint_torque_nm, sc.joint_torque_nm, rtol=1e-3, atol=1e-2)
+            assert_close_on_host(obs_w["policy"], obs_c["policy"], rtol=1e-3, atol=1e-3)
         assert warp.diverged_total == c.diverged_total == 0
     finally:
         c.close()
@@ -107,12 +117,12 @@ def test_the_pelvis_wrench_gives_the_same_base_acceleration() -> None:
             env.physics.qpos[1] = env.physics.qpos[0]
             env.physics.qvel[1] = env.physics.qvel[0]
         wrench_w = torch.tensor([[60.0, -40.0, 80.0, 6.0, 4.0, -5.0], [0.0] * 6])
-        targets = c.motion.stand_rad.expand(2, -1)
         dv = {}
-        for name, env in (("c", c), ("warp", warp)):
-            env.physics.set_controls(targets, wrench_w)
+        for name, env in (("c", c), ("warp", warp)):  # set_controls takes the env's device's
+            targets = env.motion.stand_rad.expand(2, -1)
+            env.physics.set_controls(targets, wrench_w.to(env.device))
             env.physics.step()
-            qvel = env.physics.qvel.double()
+            qvel = env.physics.qvel.double().cpu()
             dv[name] = (qvel[0, :6] - qvel[1, :6]) / env.step_dt_s  # [m/s^2, rad/s^2]
         torch.testing.assert_close(dv["warp"], dv["c"], rtol=1e-3, atol=1e-2)
         assert dv["c"][0] > 0.5 and dv["c"][1] < -0.3  # along +x and -y, as pushed
@@ -133,14 +143,10 @@ def test_a_reset_world_matches_and_the_others_keep_going() -> None:
         _, _, done_w, _ = warp.step(zeros)
         assert done_c.tolist() == done_w.tolist() == [False, True, False]
         # the reset world starts from the same draw (float32-rounded on Warp)
-        torch.testing.assert_close(
-            warp.physics.qpos[1].double(), c.physics.qpos[1], atol=1e-6, rtol=0
-        )
-        torch.testing.assert_close(
-            warp.physics.qvel[1].double(), c.physics.qvel[1], atol=1e-6, rtol=0
-        )
-        assert warp.episode_length_buf[1] == c.episode_length_buf[1] == 0
-        torch.testing.assert_close(
+        assert_close_on_host(warp.physics.qpos[1].double(), c.physics.qpos[1], atol=1e-6, rtol=0)
+        assert_close_on_host(warp.physics.qvel[1].double(), c.physics.qvel[1], atol=1e-6, rtol=0)
+        assert int(warp.episode_length_buf[1]) == int(c.episode_length_buf[1]) == 0
+        assert_close_on_host(
             warp.env_state.foot_contact_force_n,
             c.env_state.foot_contact_force_n,
             rtol=1e-3,
@@ -170,6 +176,73 @@ def test_broken_worlds_are_counted_and_reset() -> None:
         assert torch.isfinite(env.physics.qpos).all() and torch.isfinite(env.physics.qvel).all()
     finally:
         env.close()
+
+
+@pytest.mark.slow
+@needs_warp
+def test_a_contact_pool_overflow_is_an_error_naming_the_sizes() -> None:
+    """A pool of 2 contacts per world cannot hold two standing G1s' 8 sole contacts each: the step
+    raises, naming the pool and what to raise, instead of resetting every world."""
+    from rl.envs.warp_physics import ContactPoolOverflowError, WarpPhysics
+
+    env = make_env(quiet(STAND), 2, backend="warp", device=WARP_DEVICE)
+    try:
+        cfg = env.cfg
+        tiny = WarpPhysics(env.model, env.randomizer.models, cfg.decimation, cfg.max_abs_qvel,
+                           WARP_DEVICE, nconmax_per_world=2)  # fmt: skip
+        tiny.qpos[:], tiny.qvel[:] = env.physics.qpos, env.physics.qvel
+        tiny.set_controls(env.motion.stand_rad.expand(2, -1), torch.zeros(2, 6, device=env.device))
+        with pytest.raises(ContactPoolOverflowError) as raised:
+            tiny.step()
+        message = str(raised.value)
+        assert "naconmax = 4 (2 per world x 2 worlds)" in message, message
+        assert "NCONMAX_PER_WORLD" in message and "nconmax_per_world" in message, message
+        assert tiny.diverged_total == 0  # raised, not reset
+        tiny.close()
+    finally:
+        env.close()
+
+
+def test_cuda_graphs_need_the_memory_pool_and_capture_with_the_gc_paused() -> None:
+    """The step is captured only on a CUDA device whose Warp memory pool is on (mjw.step allocates
+    inside the capture); the garbage collector is off during the capture and back on after it,
+    also when the capture fails."""
+    from rl.envs.warp_physics import capture_graph, cuda_graphs_usable
+
+    class Capture:
+        """Stands in for ``wp.ScopedCapture``: records nothing, yields a graph."""
+
+        def __init__(self, device) -> None:
+            self.graph = f"graph on {device}"
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc) -> None:
+            return None
+
+    def fake_warp(pool_on: bool) -> SimpleNamespace:
+        return SimpleNamespace(
+            is_mempool_enabled=lambda device: pool_on,
+            ScopedDevice=lambda device: contextlib.nullcontext(),
+            ScopedCapture=Capture,
+        )
+
+    cuda, cpu = SimpleNamespace(is_cuda=True), SimpleNamespace(is_cuda=False)
+    assert cuda_graphs_usable(fake_warp(True), cuda)
+    assert not cuda_graphs_usable(fake_warp(False), cuda)
+    assert not cuda_graphs_usable(fake_warp(True), cpu)
+    seen = []
+    graph = capture_graph(fake_warp(True), "cuda:0", lambda: seen.append(gc.isenabled()))
+    assert graph == "graph on cuda:0"
+    assert seen == [False] and gc.isenabled()  # paused during the capture only
+
+    def fails() -> None:
+        raise RuntimeError("capture failed")
+
+    with pytest.raises(RuntimeError, match="capture failed"):
+        capture_graph(fake_warp(True), "cuda:0", fails)
+    assert gc.isenabled()
 
 
 @pytest.mark.slow

@@ -50,8 +50,8 @@ def _states(model: mujoco.MjModel, num: int, on_terrain: bool) -> np.ndarray:
         k = torch.arange(num) % (t.num_rows * t.num_cols)
         row, col = k // t.num_cols, k % t.num_cols
         q0 = lay.qpos.start
-        rows[:, q0 : q0 + 2] = t.tile_center_xy(row, col).double().numpy()
-        rows[:, q0 + 2] += t.spawn_height_m[row, col].double().numpy()
+        rows[:, q0 : q0 + 2] = t.tile_center_xy(row, col).double().cpu().numpy()
+        rows[:, q0 + 2] += t.spawn_height_m[row, col].double().cpu().numpy()
     return rows
 
 

@@ -2,12 +2,12 @@
 extra), on Warp's CPU device or on a CUDA GPU.
 
 One ``mjw.Data`` holds every env as a world; a policy step is ``decimation`` calls of ``mjw.step``
-(captured once in a CUDA graph on a GPU). Warp computes in float32, so ``qpos``/``qvel`` are
-float32 here (float64 on MuJoCo C). The tensors handed to the env (``qpos``, ``qvel``, the
-readings of :meth:`WarpPhysics.read`) are ``wp.to_torch`` views of the worlds' arrays, and the
-joint targets and the pelvis wrench are written into such views: on Warp's CPU device and on a
-GPU alike, a step copies nothing between host and device (the env's parts live on the same
-device, see ``docs/gpu.md``). What goes through host memory, at resets only: the randomised
+(captured once in a CUDA graph on a GPU whose Warp memory pool is on). Warp computes in float32,
+so ``qpos``/``qvel`` are float32 here (float64 on MuJoCo C). The tensors handed to the env
+(``qpos``, ``qvel``, the readings of :meth:`WarpPhysics.read`) are ``wp.to_torch`` views of the
+worlds' arrays, and the joint targets and the pelvis wrench are written into such views: on
+Warp's CPU device and on a GPU alike, a step copies nothing between host and device (the env's
+parts live on the same device, see ``docs/gpu.md``). What goes through host memory, at resets only: the randomised
 ``MjModel`` rows (copied into the per-world model arrays) and the env ids of the model rows to
 copy.
 
@@ -23,6 +23,8 @@ randomised envs differ slightly between the backends (contact regularisation via
 
 from __future__ import annotations
 
+import gc
+from collections.abc import Callable
 from typing import Any
 
 import mujoco
@@ -36,7 +38,8 @@ from robots import g1
 
 NCONMAX_PER_WORLD = 48
 """Contacts allocated per world [-] (one pool of ``48 * N`` shared by all worlds; mujoco_warp's
-own G1 benchmark size; a standing G1 has 8 sole contacts, a fallen one about 20-30)."""
+own G1 benchmark size; a standing G1 has 8 sole contacts, a fallen one about 20-30). Overflowing
+the pool is a :class:`ContactPoolOverflowError`; ``WarpPhysics(nconmax_per_world=...)`` sizes it."""
 NJMAX_PER_WORLD = 300
 """Constraint rows per world, a hard limit [-] (mjlab's flat G1; pyramidal contacts take 4 rows
 each, plus joint limits). Oversizing costs: buffers scale with it."""
@@ -47,6 +50,11 @@ GPU_EXTRA_HINT = "install the gpu extra: pip install 'a2cf-mb[gpu]' (or -e '.[gp
 
 class MissingExtraError(ModuleNotFoundError):
     """An optional dependency (an extra of a2cf-mb) is not installed; the message names it."""
+
+
+class ContactPoolOverflowError(RuntimeError):
+    """MuJoCo Warp's contact pool, shared by all worlds, was too small for a step: every world's
+    step is wrong. The message names the sizes and how to raise them."""
 
 
 def import_warp() -> tuple[Any, Any]:
@@ -65,10 +73,55 @@ def import_warp() -> tuple[Any, Any]:
 
 
 def _fatal_overflow(mjw: Any) -> int:
-    """Overflow bits that leave a world's step wrong (buffers too small). Solver iteration limits
-    (ITERATIONS, LS_ITERATIONS) are not among them: MuJoCo C carries on after those too."""
+    """Overflow bits that leave one world's step wrong (its own buffers too small): that world is
+    reset. Solver iteration limits (ITERATIONS, LS_ITERATIONS) are not among them: MuJoCo C
+    carries on after those too. The shared contact pool's bits are :func:`_pool_overflow`'s."""
     o = mjw.OverflowType
-    return int(o.NEFC | o.NJMAX_NNZ | o.BROADPHASE | o.NARROWPHASE | o.CCD)
+    return int(o.NEFC | o.NJMAX_NNZ | o.CCD)
+
+
+def _pool_overflow(mjw: Any) -> int:
+    """Overflow bits of the contact pool all worlds share: mujoco_warp sets them on every world."""
+    o = mjw.OverflowType
+    return int(o.BROADPHASE | o.NARROWPHASE)
+
+
+def _contact_pool_message(ncollision: int, nacon: int, naconmax: int, nworld: int) -> str:
+    """What :class:`ContactPoolOverflowError` says: the pool's size and what a step asked of it
+    (``ncollision`` broadphase pairs, ``nacon`` contacts; mujoco_warp counts past the pool)."""
+    per_world = naconmax // nworld
+    asked = max(ncollision, nacon)
+    need = -(-asked // nworld)  # ceil: the pool is per_world * nworld
+    return (
+        f"MuJoCo Warp's contact pool overflowed: a step asked for {ncollision} broadphase pairs "
+        f"and {nacon} contacts, the pool holds naconmax = {naconmax} ({per_world} per world x "
+        f"{nworld} worlds), so every world's step is wrong. Raise the contacts per world to at "
+        f"least {need} (what this step asked for; leave room for more): NCONMAX_PER_WORLD in "
+        f"rl/envs/warp_physics.py (now {NCONMAX_PER_WORLD}; G1VecEnv sizes its pool with it) or "
+        f"WarpPhysics(nconmax_per_world=N). Fewer envs do not help: the pool is sized per world."
+    )
+
+
+def cuda_graphs_usable(wp: Any, device: Any) -> bool:
+    """Whether the step is replayed from a CUDA graph on Warp ``device``: a CUDA device with
+    Warp's memory pool on (``mjw.step`` allocates arrays inside the capture, which needs the
+    pool's stream-ordered allocations; mjlab checks the same). Elsewhere the step runs eagerly."""
+    return bool(device.is_cuda and wp.is_mempool_enabled(device))
+
+
+def capture_graph(wp: Any, device: Any, launches: Callable[[], None]) -> Any:
+    """A Warp graph of the kernels ``launches`` issues on ``device``. Python's garbage collector
+    is paused meanwhile: a collection could release Warp arrays or modules, which must not be
+    freed inside a capture."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        with wp.ScopedDevice(device), wp.ScopedCapture(device=device) as capture:
+            launches()
+    finally:
+        if was_enabled:
+            gc.enable()
+    return capture.graph
 
 
 class WarpPhysics:
@@ -85,9 +138,14 @@ class WarpPhysics:
         decimation: int,
         max_abs_qvel: float,
         device: str = "cpu",
+        *,
+        nconmax_per_world: int = NCONMAX_PER_WORLD,
+        njmax_per_world: int = NJMAX_PER_WORLD,
     ) -> None:
         """``model``: the nominal model; ``models`` (N,): the model of each env (the randomiser's
-        copies, env i using copy i % G); ``max_abs_qvel`` [m/s, rad/s]: the divergence guard."""
+        copies, env i using copy i % G); ``max_abs_qvel`` [m/s, rad/s]: the divergence guard;
+        ``nconmax_per_world`` [-]: the shared contact pool's size per world; ``njmax_per_world``
+        [-]: constraint rows per world."""
         wp, mjw = self._wp, self._mjw = import_warp()
         if device.startswith("cuda") and not wp.is_cuda_available():
             raise ValueError(
@@ -107,7 +165,7 @@ class WarpPhysics:
         with wp.ScopedDevice(self.device):
             self.m = mjw.put_model(model, batch_sizes=batch)
             self.d = mjw.make_data(
-                model, nworld=n, nconmax=NCONMAX_PER_WORLD, njmax=NJMAX_PER_WORLD
+                model, nworld=n, nconmax=nconmax_per_world, njmax=njmax_per_world
             )
         d = self.d
         # The env's tensors live on the torch device of Warp's. Ordering between torch's work and
@@ -125,6 +183,7 @@ class WarpPhysics:
         self._warmstart = wp.to_torch(d.qacc_warmstart)
         self._overflow = wp.to_torch(d.overflow)
         self._fatal = _fatal_overflow(mjw)
+        self._pool = _pool_overflow(mjw)
         self.qpos, self.qvel = self._sim["qpos"], self._sim["qvel"]
         dev = self.torch_device
         stand = torch.as_tensor(lay.stand_state, dtype=torch.float64)
@@ -135,6 +194,7 @@ class WarpPhysics:
             f: wp.to_torch(getattr(self.m, f)) for f in MODEL_FIELDS if k > 1
         }  # (G, ...) per-world model fields
         self._models_dirty = k > 1  # copy every model row in before the next step
+        self._use_graph = cuda_graphs_usable(wp, self.device)
         self._graph = None  # CUDA graph of decimation steps, captured on the second step
         self._graph_ready = False
         self.diverged_total = 0
@@ -149,8 +209,10 @@ class WarpPhysics:
 
     def step(self) -> torch.Tensor:
         """``decimation`` physics steps of every world; returns (N,) bool, the worlds that were
-        non-finite before, went non-finite, exceeded ``max_abs_qvel`` or overflowed a buffer:
-        they are counted and hold the standing keyframe until the env resets them."""
+        non-finite before, went non-finite, exceeded ``max_abs_qvel`` or overflowed a buffer of
+        their own: they are counted and hold the standing keyframe until the env resets them.
+        An overflow of the contact pool all worlds share raises :class:`ContactPoolOverflowError`
+        (resetting every world would hide it)."""
         qpos, qvel = self.qpos, self.qvel
         bad_in = ~(torch.isfinite(qpos).all(dim=1) & torch.isfinite(qvel).all(dim=1))
         if bad_in.any():
@@ -164,7 +226,13 @@ class WarpPhysics:
         calm = torch.nan_to_num(qvel, nan=torch.inf).abs().amax(dim=1) < self.max_abs_qvel
         overflow = (self._overflow & self._fatal) != 0
         diverged = bad_in | ~finite | ~calm | overflow
-        num_diverged = int(diverged.sum())  # one scalar to the host
+        pool = ((self._overflow & self._pool) != 0).any().long()
+        counts = torch.stack([diverged.sum(), pool])
+        num_diverged, pool_overflowed = counts.tolist()  # one transfer to the host for both
+        if pool_overflowed:
+            d, to_torch = self.d, self._wp.to_torch
+            asked = int(to_torch(d.ncollision)[0]), int(to_torch(d.nacon)[0])
+            raise ContactPoolOverflowError(_contact_pool_message(*asked, d.naconmax, d.nworld))
         if num_diverged:
             rows = diverged.nonzero().flatten()
             self._stand_rows(rows)
@@ -173,19 +241,21 @@ class WarpPhysics:
         return diverged
 
     def _advance(self) -> None:
-        """``decimation`` ``mjw.step`` calls (replayed from a CUDA graph after the first step)."""
+        """``decimation`` ``mjw.step`` calls (replayed from a CUDA graph after the first step where
+        :func:`cuda_graphs_usable`)."""
         wp, mjw = self._wp, self._mjw
-        if self.device.is_cuda and self._graph_ready:
+
+        def steps() -> None:
+            for _ in range(self.decimation):
+                mjw.step(self.m, self.d)
+
+        if self._use_graph and self._graph_ready:
             if self._graph is None:  # kernels are compiled by now: capture once
-                with wp.ScopedDevice(self.device), wp.ScopedCapture() as capture:
-                    for _ in range(self.decimation):
-                        mjw.step(self.m, self.d)
-                self._graph = capture.graph
+                self._graph = capture_graph(wp, self.device, steps)
             wp.capture_launch(self._graph)
             return
         with wp.ScopedDevice(self.device):
-            for _ in range(self.decimation):
-                mjw.step(self.m, self.d)
+            steps()
         self._graph_ready = True
 
     def _stand_rows(self, rows: torch.Tensor) -> None:

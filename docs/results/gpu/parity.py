@@ -5,6 +5,10 @@ from the Warp env's (float32) state, the same random actions (motion and assist)
 policy steps; then world 0 of a stand pair gets a pelvis wrench that world 1 (same state) does
 not, and the base acceleration it causes is compared. Writes a JSON of the figures.
 
+On ``--device cuda`` the Warp env's tensors are on the GPU and the MuJoCo C env's on the host:
+every comparison is made on host copies (:func:`max_abs_diff`), and what is written into an env
+is moved to that env's device first.
+
     python docs/results/gpu/parity.py --device cpu --out parity_cpu.json
     python docs/results/gpu/parity.py --device cuda --num-envs 64 --out parity_cuda.json
 """
@@ -26,9 +30,14 @@ def pair(task: str, num_envs: int, device: str):
     warp = make_env(quiet_task(task), num_envs, backend="warp", device=device)
     c = make_env(quiet_task(task), num_envs, num_threads=2)
     lay = c.layout
-    c.state[:, lay.qpos] = warp.physics.qpos.double().numpy()
-    c.state[:, lay.qvel] = warp.physics.qvel.double().numpy()
+    c.state[:, lay.qpos] = warp.physics.qpos.double().cpu().numpy()
+    c.state[:, lay.qvel] = warp.physics.qvel.double().cpu().numpy()
     return c, warp
+
+
+def max_abs_diff(a: torch.Tensor, b: torch.Tensor) -> float:
+    """max |a - b| of two tensors of one shape, on any devices, compared in float64 on the host."""
+    return float((a.detach().cpu().double() - b.detach().cpu().double()).abs().max())
 
 
 def quiet_task(name: str):
@@ -49,15 +58,13 @@ def trajectory_errors(task: str, num_envs: int, steps: int, device: str) -> dict
         _, rew_w, done_w, _ = warp.step(actions)
         rows.append(
             {
-                "qpos": float((c.physics.qpos - warp.physics.qpos.double()).abs().max()),
-                "qvel": float((c.physics.qvel - warp.physics.qvel.double()).abs().max()),
-                "reward": float((rew_c - rew_w).abs().max()),
-                "foot_force_n": float(
-                    (c.env_state.foot_contact_force_n - warp.env_state.foot_contact_force_n)
-                    .abs()
-                    .max()
+                "qpos": max_abs_diff(c.physics.qpos, warp.physics.qpos),
+                "qvel": max_abs_diff(c.physics.qvel, warp.physics.qvel),
+                "reward": max_abs_diff(rew_c, rew_w),
+                "foot_force_n": max_abs_diff(
+                    c.env_state.foot_contact_force_n, warp.env_state.foot_contact_force_n
                 ),
-                "dones_equal": bool(torch.equal(done_c, done_w)),
+                "dones_equal": bool(torch.equal(done_c.cpu(), done_w.cpu())),
             }
         )
     c.close()
@@ -71,12 +78,12 @@ def wrench_errors(device: str) -> dict:
     c, warp = pair("stand", 2, device)
     wrench_w = torch.tensor([[60.0, -40.0, 80.0, 6.0, 4.0, -5.0], [0.0] * 6])
     acc = {}
-    for name, env in (("mujoco", c), ("warp", warp)):
+    for name, env in (("mujoco", c), ("warp", warp)):  # set_controls takes its env's device's
         env.physics.qpos[1] = env.physics.qpos[0]
         env.physics.qvel[1] = env.physics.qvel[0]
-        env.physics.set_controls(env.motion.stand_rad.expand(2, -1), wrench_w)
+        env.physics.set_controls(env.motion.stand_rad.expand(2, -1), wrench_w.to(env.device))
         env.physics.step()
-        qvel = env.physics.qvel.double()
+        qvel = env.physics.qvel.double().cpu()
         acc[name] = ((qvel[0, :6] - qvel[1, :6]) / env.step_dt_s).tolist()
     c.close()
     warp.close()

@@ -64,15 +64,18 @@ class WalkEvaluator:
 
     def on_step(self, env: Any, active: torch.Tensor, dones: torch.Tensor, extras: dict) -> None:
         """Add this step's errors for envs still in their first episode (``active`` before it)."""
-        s = env.env_state.to("cpu")  # this evaluator's buffers are on the host
-        done = dones.bool().cpu()
-        alive = active & ~done  # the state of done envs is already their next episode's
+        s = env.env_state  # on the env's device: this step's figures are computed there
         lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
         yaw = (s.base_ang_vel_b[:, 2] - s.command[:, 2]).abs()
+        # this evaluator's buffers are on the host: only the (N, 4) figures cross, in one copy
+        figures = torch.stack([lin, yaw, s.base_pos_w[:, 0], s.base_pos_w[:, 1]], dim=-1).cpu()
+        lin, yaw, xy_w = figures[:, 0], figures[:, 1], figures[:, 2:]
+        done = dones.bool().cpu()
+        alive = active & ~done  # the state of done envs is already their next episode's
         self.lin_error_sum += torch.where(alive, lin, 0.0)
         self.yaw_error_sum += torch.where(alive, yaw, 0.0)
         self.steps += alive.float()
-        dist = (s.base_pos_w[:, :2] - self.start_xy_w).norm(dim=-1)
+        dist = (xy_w - self.start_xy_w).norm(dim=-1)
         self.distance_m = torch.where(alive, dist, self.distance_m)
         self.fell |= active & done & ~extras["time_outs"].bool().cpu()
 
