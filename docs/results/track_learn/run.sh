@@ -4,7 +4,7 @@
 # 128 envs x 24 steps, 3256 iterations = 10.0 M env steps, evaluated alone every 60 iterations
 # (32 fresh envs, seed 10000, from the dance's first frame). One physics and one torch thread per
 # run; the three seeds ran at once on the 2-core machine.
-# Usage: bash docs/results/track_learn/run.sh [baseline|a2cf_warm|lafan_oracle|lafan_baseline]
+# Usage: bash docs/results/track_learn/run.sh [baseline|residual|jointterm|a2cf_warm|lafan_oracle|lafan_baseline]
 # (a2cf_warm, lafan_baseline: SEED=0 by default; the lafan cases: CLIP=path of the segment)   (OUT=runs/track_learn by default)
 # Continue a run cut off by the end of a session: a2cf-mb train --resume "$OUT/<run>"
 set -euo pipefail
@@ -17,6 +17,15 @@ baseline)
     a2cf-mb train --task dance --mode baseline --seed "$seed" "${common[@]}" --run-name "dance_baseline_s$seed" &
   done
   wait ;;
+residual)  # the probe that tracks: PD targets around the reference (q_ref + scale a), 3 seeds
+  for seed in 0 1 2; do
+    a2cf-mb train --task dance --mode baseline --seed "$seed" "${common[@]}" \
+      --task-actions-around-reference --run-name "dance_residual_s$seed" &
+  done
+  wait ;;
+jointterm)  # the other probe: a steep joint term exp(-rms^2 / 0.2^2) at weight 2 (seed 0)
+  a2cf-mb train --task dance --mode baseline --seed 0 "${common[@]}" \
+    --task-reward-weight joint_position=2 --run-name dance_jointterm_s0 ;;
 a2cf_warm)  # A2CF with its force agent warm-started from the same dance's oracle (eta0, coach)
   seed=${SEED:-0}
   [ -d "$OUT/oracle_dance" ] || a2cf-mb solve-dance --out "$OUT/oracle_dance" --no-progress
