@@ -18,9 +18,12 @@ oracle)  # the flip and its wrenches (about 3 min cold)
   a2cf-mb solve-backflip --oracle-out "$OUT/oracle" --no-oracle-progress ;;
 baseline)  # no help
   a2cf-mb train "${common[@]}" --mode baseline --seed "$seed" --run-name "flip_baseline_s$seed" ;;
-a2cf_warm)  # A2CF, the force head warm-started from the artifact's coach, eta0 per phase from it
+a2cf_warm)  # A2CF, the force head warm-started from the artifact's coach, eta0 per phase from it;
+  # the help annealed over 3000 iterations (9.2 M env steps; the default 200, measured best on
+  # stand and dance, took all help away by 0.6 M, before any robot got past the crouch:
+  # flip_a2cfwarm_anneal200_s0, ANNEAL=200)
   a2cf-mb train "${common[@]}" --mode a2cf --warmstart "$OUT/oracle" --seed "$seed" \
-    --run-name "flip_a2cfwarm_s$seed" ;;
+    --curriculum-anneal-iterations "${ANNEAL:-3000}" --run-name "flip_a2cfwarm_s$seed" ;;
 coach)  # the artifact's coach itself as the help, scaled by the failure rate (ZEST's rule)
   a2cf-mb train "${common[@]}" --mode coach --coach-source "$OUT/oracle" --seed "$seed" \
     --run-name "flip_coach_s$seed" ;;
