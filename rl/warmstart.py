@@ -160,11 +160,18 @@ def distill_assist_head(
 
 
 def require_joint_reference(env: G1VecEnv) -> None:
-    """Refuse ``--warmstart-motion`` on a task whose command has no joint reference."""
+    """Refuse ``--warmstart-motion`` on a task whose command has no joint reference, or whose
+    actions are already around it (zero action follows the reference: nothing to clone)."""
     if env.command_gen.reference_joint_pos_rad() is None:
         raise ValueError(
             f"--warmstart-motion needs a time-indexed joint reference; task '{env.task.name}' "
             "has none (its command gives no reference_joint_pos_rad): use it with dance"
+        )
+    if env.task.actions_around_reference:
+        raise ValueError(
+            f"--warmstart-motion: task '{env.task.name}' has its actions around the reference "
+            "already (zero action follows it), so there is nothing to clone; drop the flag, or "
+            "add --no-task-actions-around-reference"
         )
 
 

@@ -127,8 +127,10 @@ def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_
     from rl.runner import build_training
     from rl.warmstart import distill_motion_head
 
+    standing = {"actions_around_reference": False}  # the clone's target is a standing offset
     cfg = TrainConfig(task="dance", mode="baseline", env=EnvConfig(num_envs=16, num_threads=2),
-                      model=TINY_MODEL, ppo=PPOConfig(num_mini_batches=2))  # fmt: skip
+                      model=TINY_MODEL, ppo=PPOConfig(num_mini_batches=2),
+                      task_overrides=standing)  # fmt: skip
     env, runner, _ = build_training(cfg, run_dir=None)
     learner = runner.env
     target = env.joint_targets_to_actions(env.command_gen.reference_joint_pos_rad())
@@ -149,6 +151,9 @@ def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_
     with pytest.raises(ValueError, match="--warmstart-motion needs a time-indexed joint reference"):
         train(stand, verbose=False)
     assert not (tmp_path / "stand").exists()  # refused before the run folder is made
+    around = dataclasses.replace(stand, task="dance", run_name="dance")
+    with pytest.raises(ValueError, match="around the reference already"):
+        train(around, verbose=False)
 
 
 def test_artifact_coach_follows_the_backflip_from_its_start_command(tmp_path, g1_pin):
