@@ -4,21 +4,7 @@
 set -euo pipefail
 SRC=${1:-runs/track_learn}
 DST=$(dirname "$0")
-for run in "$SRC"/*/; do
-  name=$(basename "$run")
-  [ -f "$run/config.json" ] || continue
-  mkdir -p "$DST/$name"
-  for f in config.json git.json evals.jsonl evals_checkpoints.jsonl warmstart.json policy.json; do
-    [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
-  done
-  [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
-  [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
-done
-for art in "$SRC"/oracle_*/; do  # the oracle's summary (its reference of a LAFAN1 clip stays out)
-  [ -f "$art/oracle.json" ] || continue
-  mkdir -p "$DST/$(basename "$art")"
-  cp "$art/oracle.json" "$DST/$(basename "$art")/"
-done
+bash "$DST/../copy_runs.sh" "$SRC" "$DST"
 # the default recipe (actions around the reference), 3 seeds: summary, curves and the seed spread
 # the demo reads; the same baseline with the actions around the standing pose: standing/
 python "$DST/summarise.py" "$DST"/dance_residual_s{0,1,2} --out "$DST"
