@@ -515,7 +515,8 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             f"{seconds_per_iteration:.2f} s per iteration measured here, about "
             f"{duration_str(LONGER_ITERATIONS * seconds_per_iteration)} of training, plus start-up "
             "and evaluations). docs/results/track_learn measures the baseline's policy alone on "
-            "this target over 3 seeds (not reached by 5.5 M env steps).",
+            "this target over 3 seeds (reached at 5.2-8.9 M env steps, each confirmed on 128 "
+            "fresh envs).",
             "",
         ]
     )
