@@ -27,9 +27,9 @@ from typing import Any
 
 import torch
 
-from rl.envs.state import quat_rotate
 from rl.tasks.track.evaluation import TrackEvaluationConfig, TrackEvaluator
 from rl.tasks.track.library import pitch_increment_rad
+from rl.terminations import base_tilted
 
 FLIP_HOLD_S = 1.5
 """Seconds a flip reference's first and last frames are held: the robot starts standing, and
@@ -88,10 +88,8 @@ class FlipEvaluator(TrackEvaluator):
             soles = (s.foot_contact_force_n > cfg.contact_threshold_n).all(dim=-1)
             self.landed |= keep & turned & soles
             self.other_contact |= keep & s.body_ground_contact.any(dim=-1)
-            up = torch.tensor([0.0, 0.0, 1.0]).expand(s.base_quat_w.shape[0], 3)
-            tilt = torch.acos(quat_rotate(s.base_quat_w, up)[:, 2].clamp(-1.0, 1.0))
             still = (
-                (tilt <= cfg.max_tilt_rad)
+                ~base_tilted(s, cfg.max_tilt_rad)
                 & (s.base_lin_vel_w.norm(dim=-1) <= cfg.max_speed_mps)
                 & (s.base_ang_vel_b.norm(dim=-1) <= cfg.max_ang_speed_rps)
             )
