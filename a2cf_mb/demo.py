@@ -64,7 +64,7 @@ from optimal_control.files import (
     atomic_write_text,
     check_writable_dir,
 )
-from rl.run_folder import EVAL_FILE, METRICS_FILE, RunFolderLock, StaleLockWarning
+from rl.runs.folder import EVAL_FILE, METRICS_FILE, RunFolderLock, StaleLockWarning
 
 TASK = "dance"
 """The demo's task: the paper's dance, tracked (``track`` on the built-in 19 s choreography) and
@@ -171,8 +171,8 @@ def check_train_arguments(arguments: list[str]) -> None:
     from a2cf_mb.cli import build_parser
     from a2cf_mb.commands.train import task_overrides
     from a2cf_mb.config_cli import config_from_args
-    from rl.registry import get_task
-    from rl.train_config import TrainConfig
+    from rl.tasks.registry import get_task
+    from rl.training.config import TrainConfig
 
     args = build_parser("train").parse_args(arguments)
     overrides = task_overrides(args)
@@ -233,7 +233,7 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
         ValueError: a bad config, output folder or train flag (found before anything is written).
         a2cf_mb.progress.StageFailedError: a stage failed; its log's path and tail in the message.
     """
-    from rl.registry import get_task
+    from rl.tasks.registry import get_task
 
     out = Path(cfg.out).expanduser().absolute()
     check_output(out, cfg.overwrite)

@@ -16,7 +16,7 @@ from typing import Any
 
 from a2cf_mb.progress import duration_str
 from optimal_control.files import atomic_savefig
-from rl.run_folder import (
+from rl.runs.folder import (
     CONFIG_FILE,
     CURRICULUM_LOG,
     EVAL_FILE,
@@ -239,7 +239,7 @@ def plot_curves(out: Path, summary: dict[str, Any]) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rl.alone_eval import curve_arrays
+    from rl.evaluation.alone import curve_arrays
 
     metric = summary["target"]["metric"]
     fig, axes = plt.subplots(2, 2, figsize=(12, 7))

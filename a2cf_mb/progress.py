@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from rl.run_folder import CONFIG_FILE, CURRICULUM_LOG, EVALS_LOG, WARMSTART_FILE
+from rl.runs.folder import CONFIG_FILE, CURRICULUM_LOG, EVALS_LOG, WARMSTART_FILE
 
 ITERATION_RE = re.compile(r"Learning iteration (\d+)/(\d+)")
 """rsl-rl's header of an iteration's block: the 0-based index of the iteration just done / total."""

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 
+from rl.envs.task_schema import quiet
 from rl.envs.vec_env import G1VecEnv
-from rl.registry import make_env
-from rl.tasks.config import quiet
-from rl.tasks.stand import STAND
+from rl.tasks.registry import make_env
+from rl.tasks.stand.task import STAND
 
 
 def stand_env(

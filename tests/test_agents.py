@@ -8,8 +8,11 @@ from rsl_rl.models import MLPModel
 from rsl_rl.storage import RolloutStorage
 from tensordict import TensorDict
 
-from rl.agents import A2CFPPO, MODES, A2CFActor, HistoryEncoder, get_mode
-from rl.export import OnnxMotionPolicy, export_motion_policy
+from rl.a2cf.config import MODES, get_mode
+from rl.agents.export import OnnxMotionPolicy, export_motion_policy
+from rl.agents.models import A2CFActor
+from rl.agents.ppo import A2CFPPO
+from rl.agents.vae import HistoryEncoder
 
 N, P, H, K, C = 8, 12, 3, 7, 25  # tiny sizes: envs, obs, history, privileged, critic
 GAUSSIAN = {"class_name": "GaussianDistribution", "init_std": 1.0}
@@ -242,7 +245,7 @@ def test_the_adaptive_learning_rate_can_follow_the_motion_actions_kl_alone() -> 
 
 
 def test_kl_actions_is_checked() -> None:
-    from rl.train_config import PPOConfig, TrainConfig
+    from rl.training.config import PPOConfig, TrainConfig
 
     with pytest.raises(ValueError, match="--ppo-kl-actions"):
         TrainConfig(ppo=PPOConfig(kl_actions="assist"))

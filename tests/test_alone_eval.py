@@ -10,14 +10,14 @@ import pytest
 import torch
 from test_training import read_jsonl, tiny_config
 
-from rl.alone_eval import AloneEvalConfig
-from rl.curriculum import CurriculumConfig
-from rl.evaluate import evaluate_checkpoints
-from rl.learning_study import summarise_study
-from rl.run_folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
-from rl.runner import train
-from rl.tasks.config import SkillTarget
-from rl.train_config import PPOConfig
+from rl.a2cf.config import CurriculumConfig
+from rl.envs.task_schema import SkillTarget
+from rl.evaluation.config import AloneEvalConfig
+from rl.evaluation.policy import evaluate_checkpoints
+from rl.runs.folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
+from rl.studies.learning import summarise_study
+from rl.training.config import PPOConfig
+from rl.training.runner import train
 
 EVAL = AloneEvalConfig(interval=1, num_envs=3, seed=7)
 
@@ -101,7 +101,7 @@ def test_the_evaluation_measure_reads_the_evaluations_alone(tmp_path) -> None:
     run = train(tiny_config(tmp_path, "a2cf", eval=EVAL, curriculum=by_eval), verbose=False)
     rows = read_jsonl(run.run_dir / EVALS_LOG)
     state = torch.load(run.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
-    progress = state["curriculum"]["evaluated_progress"]
+    progress = state["a2cf"]["curriculum"]["evaluated_progress"]
     assert progress == pytest.approx(rows[-1]["target_progress"])
     assert rows[-1]["target_progress"] == pytest.approx(rows[-1]["survival_fraction"] / 0.9)
     with pytest.raises(ValueError, match="--eval-interval > 0"):
@@ -143,10 +143,11 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
     ],
 )
 def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curriculum, ppo, name):
-    from rl.learning_study import run_variant
-    from rl.runner import with_task_defaults
+    from rl.studies.learning import run_variant
+    from rl.tasks.registry import resolve_task
+    from rl.training.config import with_task_defaults
 
     cfg = tiny_config(tmp_path, mode, warmstart=warm, curriculum=curriculum, ppo=ppo)
     if ppo.num_learning_epochs:
         cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, vae_learning_epochs=0))
-    assert run_variant(with_task_defaults(cfg)) == name
+    assert run_variant(with_task_defaults(cfg, resolve_task(cfg))) == name

@@ -10,7 +10,7 @@ import pytest
 import torch
 from stand_envs import stand_env
 
-from rl.assist import AssistState, assist_wrench, sample_mask, squash_wrench
+from rl.envs.assist import AssistState, assist_wrench, sample_mask, squash_wrench
 from rl.envs.model import CONTROL_SPEC, STATE_SPEC
 from rl.envs.state import heading_to_world, world_to_heading
 from robots import g1

@@ -12,14 +12,16 @@ import torch
 from test_training import tiny_config
 
 from optimal_control.bounds import PAPER_ETA0
-from rl.curriculum import PAPER_RULES, AssistCurriculum, CurriculumConfig, CurriculumEvent
+from rl.a2cf.algorithm1 import Algorithm1, RecordingEnv
+from rl.a2cf.config import PAPER_RULES, CurriculumConfig
+from rl.a2cf.curriculum import AssistCurriculum
 from rl.envs.state import EnvState
-from rl.evaluate import EvalConfig, evaluate
-from rl.registry import get_task, make_env
-from rl.runner import train
-from rl.tasks import backflip_terms as bt
-from rl.tasks.backflip import BACKFLIP, backflip_task
-from rl.tasks.config import quiet
+from rl.envs.task_schema import quiet
+from rl.evaluation.policy import EvalConfig, evaluate
+from rl.tasks.backflip import terms as bt
+from rl.tasks.backflip.task import BACKFLIP, backflip_task
+from rl.tasks.registry import get_task, make_env
+from rl.training.runner import train
 from robots import g1
 
 N = 5
@@ -198,20 +200,19 @@ def test_per_phase_bounds_follow_algorithm_1_independently_in_the_real_env() -> 
         eta0 = env.task.default_assist_bound()
         torch.testing.assert_close(eta0, torch.tensor(PAPER_ETA0["backflip"]["all"]).float())
         assert not torch.allclose(eta0[0], eta0[2])  # the paper's rows differ per phase
-        event = CurriculumEvent(
-            AssistCurriculum(eta0, CurriculumConfig(**PAPER_RULES)), steps_per_iteration=6
-        )
-        env.attach_curriculum(event)
         env.set_random_mask_prob(0.0)
-        row = None
+        learner = RecordingEnv(
+            env, Algorithm1(AssistCurriculum(eta0, CurriculumConfig(**PAPER_RULES)))
+        )
         for _ in range(6):
             # No help in Stand (|F| = 0 << |eta|), full help in Crouch (|F| ~ |eta|: in the band).
             raw = torch.where((env.phase == bt.CROUCH).unsqueeze(-1), 20.0, 0.0).expand(4, 6)
-            _, _, _, extras = env.step(torch.cat([torch.zeros(4, 29), raw], dim=-1))
-            row = extras["log"] if "Curriculum/eta_stand_fx" in extras["log"] else row
+            learner.step(torch.cat([torch.zeros(4, 29), raw], dim=-1))
+        row = learner.end_iteration()  # the runner's, once per iteration
+        event = learner.algorithm
         eta = event.curriculum.eta
-        assert row is not None and event.iteration == 1
-        visited = event.history[-1]["visited"]
+        assert event.iteration == 1
+        visited = row["visited"]
         assert visited[:2] == [True, True] and visited[2:] == [False] * 3
         torch.testing.assert_close(eta[0], eta0[0] * 0.8)  # Stand: shrunk
         torch.testing.assert_close(eta[1], eta0[1])  # Crouch: kept

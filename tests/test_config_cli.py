@@ -99,7 +99,7 @@ def test_train_takes_the_short_flags_other_rl_tools_use() -> None:
     """``--num-envs`` and ``--seed`` (Isaac Lab / mjlab spelling) are second spellings of
     ``--env-num-envs`` and ``--env-seed``: the same dest, no second field; ``--device`` is
     TrainConfig's own; ``--help`` lists both spellings."""
-    from rl.train_config import TrainConfig
+    from rl.training.config import TrainConfig
 
     parser = build_parser("train")
     short = parser.parse_args(["train", "--num-envs", "4096", "--seed", "7", "--device", "cuda:0"])

@@ -6,23 +6,38 @@ import pytest
 import torch
 
 from optimal_control.bounds import PAPER_ETA0
-from rl.curriculum import (
-    PAPER_RULES,
+from rl.a2cf.algorithm1 import Algorithm1, AssistStatistics, histogram_quantile
+from rl.a2cf.config import PAPER_RULES, CurriculumConfig
+from rl.a2cf.curriculum import (
     AssistCurriculum,
-    AssistStatistics,
-    CurriculumConfig,
-    CurriculumEvent,
-    histogram_quantile,
     identical_axis_bounds,
-    paper_bound_rows,
     update_bound,
 )
-from rl.tasks.stand import STAND
+from rl.envs.assist import paper_bound_rows
+from rl.tasks.stand.task import STAND
 
 ETA0 = torch.tensor([[40.0, 40.0, 10.0, 40.0, 40.0, 40.0], [40.0, 40.0, 100.0, 30.0, 30.0, 30.0]])
 NORM0 = torch.linalg.vector_norm(ETA0, dim=-1)
 PAPER = CurriculumConfig(**PAPER_RULES)  # Algorithm 1 as the paper states it
 BOTH = torch.tensor([True, True])
+
+
+class Rollout:
+    """Algorithm 1 fed step by step, updated after every ``steps_per_iteration`` steps (what the
+    runner does once per iteration); everything else is the :class:`Algorithm1`'s."""
+
+    def __init__(self, curriculum: AssistCurriculum, steps_per_iteration: int) -> None:
+        self.algorithm = Algorithm1(curriculum)
+        self.steps_per_iteration = steps_per_iteration
+
+    def on_step(self, assist, skill_progress, alone_progress=None):
+        self.algorithm.record(assist, skill_progress, alone_progress)
+        if self.algorithm.steps < self.steps_per_iteration:
+            return None
+        return self.algorithm.end_iteration()
+
+    def __getattr__(self, name: str):
+        return getattr(self.__dict__["algorithm"], name)
 
 
 def test_update_bound_shrinks_when_force_below_band() -> None:
@@ -175,7 +190,7 @@ def _step_extras(phase: list[int], force: float) -> dict:
 
 def test_curriculum_event_updates_once_per_rollout() -> None:
     """In-env Algorithm 1: statistics of exactly ``steps_per_iteration`` steps, one update each."""
-    event = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
+    event = Rollout(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
     # Phase 0 gets a small wrench (shrink), phase 1 one far above its bound (grow).
     rows = [event.on_step(_step_extras([0, 1], 0.0), 0.1) for _ in range(2)]
     assert rows == [None, None]
@@ -186,10 +201,10 @@ def test_curriculum_event_updates_once_per_rollout() -> None:
     torch.testing.assert_close(torch.tensor(row["eta"][0]), ETA0[0] * 0.8)
     torch.testing.assert_close(torch.tensor(row["eta"][1]), ETA0[1] * 1.2)
     assert row["skill_progress"] == pytest.approx(0.2)
-    assert event.step_in_iteration == 0 and event.stats.steps == 0
+    assert event.steps == 0 and event.stats.steps == 0
     # The next rollout starts from the new bounds; state round-trips.
     state = event.state_dict()
-    other = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
+    other = Rollout(AssistCurriculum(ETA0, PAPER), steps_per_iteration=3)
     other.load_state_dict(state)
     torch.testing.assert_close(other.curriculum.eta, event.curriculum.eta)
     assert other.history == event.history and other.iteration == 1
@@ -198,7 +213,7 @@ def test_curriculum_event_updates_once_per_rollout() -> None:
 def test_curriculum_event_ignores_steps_while_assistance_is_off() -> None:
     curriculum = AssistCurriculum(ETA0, PAPER)
     curriculum.assist_enabled = False
-    event = CurriculumEvent(curriculum, steps_per_iteration=2)
+    event = Rollout(curriculum, steps_per_iteration=2)
     event.on_step(_step_extras([0, 0], 50.0), 1.0)
     row = event.on_step(_step_extras([0, 0], 50.0), 1.0)
     assert row["visited"] == [False, False] and row["applied_force_n"] == 0.0
@@ -211,7 +226,7 @@ def _distributed_worker(rank: int, world: int, port: int, queue) -> None:
     dist.init_process_group("gloo", init_method=f"tcp://127.0.0.1:{port}", rank=rank,
                             world_size=world)  # fmt: skip
     try:
-        event = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
+        event = Rollout(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
         # Rank 0 sees a tiny wrench in phase 0 only, rank 1 a large one in phase 0 and phase 1.
         force = [1.0, 200.0][rank]
         phases = [[0, 0], [0, 1]][rank]
@@ -253,13 +268,13 @@ def test_rarely_visited_phases_keep_their_bound_with_min_phase_samples() -> None
     """Option against a measured failure (backflip): a phase visited by a handful of samples
     shrinks on noise, and the squashed wrench can never exceed its bound to grow it back."""
     cfg = CurriculumConfig(min_phase_samples=3, **PAPER_RULES)
-    event = CurriculumEvent(AssistCurriculum(ETA0, cfg), steps_per_iteration=1)
+    event = Rollout(AssistCurriculum(ETA0, cfg), steps_per_iteration=1)
     row = event.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)  # phase 1: one sample
     assert row["visited"] == [True, False]
     torch.testing.assert_close(torch.tensor(row["eta"][1]), ETA0[1])
     torch.testing.assert_close(torch.tensor(row["eta"][0]), ETA0[0] * 0.8)
     # with the paper's rule the single sample counts and shrinks phase 1 too
-    paper = CurriculumEvent(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
+    paper = Rollout(AssistCurriculum(ETA0, PAPER), steps_per_iteration=1)
     torch.testing.assert_close(
         torch.tensor(paper.on_step(_step_extras([0, 0, 0, 1], 0.0), 0.0)["eta"][1]), ETA0[1] * 0.8
     )
@@ -297,8 +312,8 @@ def test_quantile_measure_keeps_the_bound_of_an_as_needed_helper() -> None:
     it uses all of it where help is needed; the quantile measure holds the bound while more than
     10 % of the states need it, and shrinks it once they do not."""
     eta0 = ETA0[:1]
-    paper = CurriculumEvent(AssistCurriculum(eta0, PAPER), steps_per_iteration=1)
-    quant = CurriculumEvent(
+    paper = Rollout(AssistCurriculum(eta0, PAPER), steps_per_iteration=1)
+    quant = Rollout(
         AssistCurriculum(eta0, CurriculumConfig(**{**PAPER_RULES, "force_measure": "quantile"})),
         steps_per_iteration=1,
     )
@@ -344,7 +359,7 @@ def test_alone_measure_triggers_the_decay_and_helped_progress_does_not() -> None
 
 def test_event_averages_the_alone_progress_over_the_rollout() -> None:
     cfg = CurriculumConfig(skill_measure="alone")
-    event = CurriculumEvent(AssistCurriculum(ETA0, cfg), steps_per_iteration=2)
+    event = Rollout(AssistCurriculum(ETA0, cfg), steps_per_iteration=2)
     zero = {"applied_wrench": torch.zeros(2, 6), "phase": torch.zeros(2, dtype=torch.long)}
     assert event.on_step(zero, skill_progress=0.0, alone_progress=0.6) is None
     row = event.on_step(zero, skill_progress=0.0, alone_progress=1.0)

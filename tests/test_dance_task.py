@@ -11,13 +11,14 @@ import pytest
 import torch
 from test_training import tiny_config
 
-from rl.evaluate import EvalConfig, evaluate
-from rl.registry import get_task, make_env
-from rl.runner import train
-from rl.tasks import dance_terms as dt
-from rl.tasks.config import quiet
-from rl.tasks.dance import DANCE_JOINTS as DANCE
-from rl.tasks.dance import DANCE_PAPER, dance_task
+from rl.envs.task_schema import quiet
+from rl.evaluation.policy import EvalConfig, evaluate
+from rl.tasks.dance import terms as dt
+from rl.tasks.dance.skill import TrackingSkillConfig
+from rl.tasks.dance.task import DANCE_JOINTS as DANCE
+from rl.tasks.dance.task import DANCE_PAPER, dance_task
+from rl.tasks.registry import get_task, make_env
+from rl.training.runner import train
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +125,7 @@ def test_skill_is_threshold_over_episode_error() -> None:
         s = env.env_state
     finally:
         env.close()
-    skill = dt.TrackingSkillConfig(window=4).build(max_episode_length=100)
+    skill = TrackingSkillConfig(window=4).build(max_episode_length=100)
     assert skill.progress() == 0.0
     joints = s.command[:, 7:].clone()
     joints[0] += 0.08  # mean abs error 0.08 rad: half the threshold

@@ -8,13 +8,13 @@ import mujoco
 import numpy as np
 import torch
 
+from rl.agents.export import OnnxMotionPolicy
 from rl.envs.config import EnvConfig
-from rl.export import OnnxMotionPolicy
-from rl.registry import make_env
-from rl.runner import train
-from rl.tasks.config import quiet
-from rl.tasks.stand import STAND
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.envs.task_schema import quiet
+from rl.tasks.registry import make_env
+from rl.tasks.stand.task import STAND
+from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+from rl.training.runner import train
 
 
 def robot_side_observation(bundle: dict, gyro, quat_wxyz, q, qdot, last_action) -> np.ndarray:
@@ -87,7 +87,7 @@ def test_bundle_rebuilds_the_observation_and_drives_the_onnx_policy(tmp_path):
         last_action = actions
 
     # The same bundle drives the second simulator (1 kHz, meshes, explicit PD), scored by the task.
-    from rl.sim2sim import Sim2SimConfig, build_sim2sim_model, run_sim2sim
+    from rl.evaluation.sim2sim import Sim2SimConfig, build_sim2sim_model, run_sim2sim
 
     model = build_sim2sim_model(Sim2SimConfig())
     assert model.opt.timestep == 0.001 and model.nu == 0 and model.nmesh > 0

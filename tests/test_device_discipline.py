@@ -22,9 +22,9 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = (ROOT / "rl", ROOT / "a2cf_mb", ROOT / "docs" / "results" / "gpu")
 HOST_ONLY = {
-    "rl/sim2sim.py": "the second simulator: MuJoCo C on the host, its tensors built there",
+    "rl/evaluation/sim2sim.py": "the second simulator: MuJoCo C on the host, its tensors built there",
     "rl/envs/physics.py": "the MuJoCo C backend, which EnvConfig keeps on the CPU",
-    "rl/export.py::check_onnx_against_torch": "host inputs for the exported policy's CPU copy",
+    "rl/agents/export.py::check_onnx_against_torch": "host inputs for the exported policy's CPU copy",
 }
 """Code allowed ``.numpy()`` without ``.cpu()``: a module path, or ``path::function``, and why."""
 MOVES_OFF_THE_HOST = {"to", "cuda"}
@@ -120,8 +120,10 @@ def test_eval_builds_the_checkpoint_policy_on_the_envs_device(tmp_path) -> None:
     from test_training import tiny_config
 
     from rl.envs.vec_env import G1VecEnv
-    from rl.evaluate import checkpoint_motion_policy
-    from rl.runner import CHECKPOINT_DIR, LAST_CHECKPOINT, load_run_config, resolve_task, train
+    from rl.evaluation.policy import checkpoint_motion_policy
+    from rl.runs.folder import CHECKPOINT_DIR, LAST_CHECKPOINT, load_run_config
+    from rl.tasks.registry import resolve_task
+    from rl.training.runner import train
 
     run = train(tiny_config(tmp_path, "a2cf", iterations=1), verbose=False).run_dir
     cfg = load_run_config(run)
@@ -139,7 +141,7 @@ def test_eval_builds_the_checkpoint_policy_on_the_envs_device(tmp_path) -> None:
 def test_the_eval_video_steps_with_actions_on_the_envs_device() -> None:
     """The video's extra steps move the policy's actions (host ones from the ONNX policy) and the
     zero assist to the env's device (meta, standing in for a GPU; a dummy env)."""
-    from rl.evaluate import _extend_video
+    from rl.evaluation.policy import _extend_video
 
     class DummyEnv:
         """Records the actions it is stepped with."""

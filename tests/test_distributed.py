@@ -12,11 +12,12 @@ from pathlib import Path
 import pytest
 import torch
 
-from rl.curriculum import CurriculumConfig
-from rl.distributed import ProcessRank, check_learner_device, rank_device, rank_env_config
+from rl.a2cf.config import CurriculumConfig
 from rl.envs.config import EnvConfig
-from rl.runner import CHECKPOINT_DIR, LAST_CHECKPOINT, check_distributed
-from rl.train_config import TrainConfig
+from rl.runs.folder import CHECKPOINT_DIR, LAST_CHECKPOINT
+from rl.training.config import TrainConfig
+from rl.training.distributed import ProcessRank, check_learner_device, rank_device, rank_env_config
+from rl.training.runner import check_distributed
 
 ROOT = Path(__file__).resolve().parents[1]
 ALONE = ProcessRank(rank=0, local_rank=0, world_size=1)

@@ -13,14 +13,14 @@ import torch
 from rsl_rl.env import VecEnv
 from stand_envs import stand_env
 
-from rl import observations, rewards
 from rl.envs.config import EnvConfig
 from rl.envs.model import STATE_SPEC
 from rl.envs.randomization import PARAM_NAMES
+from rl.envs.task_schema import InitialStateConfig, quiet
 from rl.envs.vec_env import G1VecEnv
-from rl.registry import TASKS, describe_tasks, get_task, make_env, register_task
-from rl.tasks.config import InitialStateConfig, quiet
-from rl.tasks.stand import STAND
+from rl.tasks import observations, rewards
+from rl.tasks.registry import TASKS, describe_tasks, get_task, make_env, register_task
+from rl.tasks.stand.task import STAND
 from rl.tasks.terms import ObsTerm, RewardTerm, TerminationTerm
 from robots import g1
 
@@ -247,8 +247,8 @@ def knee_bend(s, joint: str = "left_knee_joint"):
 
 def test_a_task_plugs_in_by_config_without_touching_env_or_runner(tmp_path):
     """A new task is a config plus a registry entry: here a test-only one, trained end to end."""
-    from rl.runner import train
-    from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+    from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+    from rl.training.runner import train
 
     crouch = dataclasses.replace(
         STAND,
@@ -394,7 +394,7 @@ def test_bench_env_smoke():
 def test_link_ground_contacts_and_foot_timers_from_the_physics():
     """A robot dropped onto its knees reports knee-ground contacts; a lifted robot's feet count
     air time and report the touch-down."""
-    from rl import terminations
+    from rl.tasks import terminations
 
     kneel = variant(quiet(STAND), terminations=(
         TerminationTerm("link_on_ground", terminations.link_on_ground,
@@ -425,12 +425,14 @@ def test_link_ground_contacts_and_foot_timers_from_the_physics():
 def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
     """The curriculum's alone share: fixed envs whose wrench is zero for whole episodes, their
     episodes measured apart, and left out of the force rule's statistics."""
-    from rl.curriculum import AssistCurriculum, CurriculumConfig, CurriculumEvent
+    from rl.a2cf.algorithm1 import Algorithm1, RecordingEnv
+    from rl.a2cf.config import CurriculumConfig
+    from rl.a2cf.curriculum import AssistCurriculum
 
     env = quiet_env(num_envs=8, task=variant(episode_length_s=0.06))  # 3 policy steps
     cfg = CurriculumConfig(alone_share=0.25, alone_window=4)
     eta0 = torch.full((env.num_phases, 6), 20.0)
-    env.attach_curriculum(CurriculumEvent(AssistCurriculum(eta0, cfg), steps_per_iteration=3))
+    learner = RecordingEnv(env, Algorithm1(AssistCurriculum(eta0, cfg)))
     env.set_random_mask_prob(0.0)
     assert env.assist.alone.tolist() == [True, True] + [False] * 6
     actions = zero_actions(env)
@@ -438,7 +440,7 @@ def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
     env.episode_length_buf = torch.zeros_like(env.episode_length_buf)
     env.episode_length_buf[6:] = env.max_episode_length - 1  # cut short: counted by nobody
     for _ in range(3):
-        _, _, dones, extras = env.step(actions)
+        _, _, dones, extras = learner.step(actions)
         wrench = extras["assist"]["applied_wrench"]
         assert (wrench[:2] == 0).all() and (wrench[2:].abs() > 0).all()
         # What the critic and the assist head see: no bound where no help comes.
@@ -449,14 +451,14 @@ def test_alone_envs_get_no_help_and_feed_their_own_skill_window():
     assert env.task_components.alone_skill.window.count == 2
     assert env.skill.window.count == 4
     assert extras["skill_progress_alone"] == pytest.approx(1.0 / env.task.skill.target_survival)
-    row = env.curriculum_event.history[-1]
+    row = learner.end_iteration()
     assert row["alone_progress"] is not None
     # The force statistics saw the helped rows only: the mean applied norm is the full help.
     helped_norm = float(torch.linalg.vector_norm(eta0[0] * math.tanh(1.0)))
     assert row["mean_applied_norm"][0] == pytest.approx(helped_norm, rel=1e-5)
     state = env.state_dict()
     other = quiet_env(num_envs=8, task=variant(episode_length_s=0.06))
-    other.attach_curriculum(CurriculumEvent(AssistCurriculum(eta0, cfg), steps_per_iteration=3))
+    RecordingEnv(other, Algorithm1(AssistCurriculum(eta0, cfg)))
     other.load_state_dict(state)
     assert other.task_components.alone_skill.window.count == 2
 

@@ -1,4 +1,4 @@
-"""Whole-clip rollouts (:mod:`rl.reference_rollout`): the traces start on the clip's first frame
+"""Whole-clip rollouts (:mod:`rl.evaluation.reference_rollout`): the traces start on the clip's first frame
 and line up with the oracle artifact's reference, the coach's wrench is applied as asked within
 eta0, tasks without a clip reference are refused by name, and the reference played through the
 joint PD alone falls within the built-in dance (what ``optimisation_vs_rl.ipynb`` shows)."""
@@ -13,15 +13,15 @@ import pytest
 from optimal_control.oracle import OracleConfig, solve_dance
 from rl.envs.config import EnvConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.reference_rollout import (
+from rl.evaluation.reference_rollout import (
     ReferenceRolloutConfig,
     build_env,
     coach_assist,
     reference_motion,
     rollout_reference,
 )
-from rl.registry import get_task
-from rl.tasks.dance import dance_task
+from rl.tasks.dance.task import dance_task
+from rl.tasks.registry import get_task
 from robots import g1
 from robots.conventions import pin_to_mj_qpos
 

@@ -13,10 +13,15 @@ import math
 import pytest
 import torch
 
-from rl.agents.modes import get_mode
-from rl.registry import TASKS, get_task, make_env
-from rl.runner import rsl_rl_config
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.a2cf.config import get_mode
+from rl.tasks.registry import TASKS, get_task, make_env, resolve_task
+from rl.training.config import (
+    ModelConfig,
+    PPOConfig,
+    TrainConfig,
+    rsl_rl_config,
+    with_task_defaults,
+)
 
 PAPER_TABLES_THAT_PAY_FOR_FALLING = {"walk-paper", "dance-paper", "track-paper"}
 """The paper's tables have no survival term; kept as variants, measured to pay for falls."""
@@ -73,6 +78,7 @@ def test_the_paper_tables_pay_for_falling(task: str) -> None:
 
 def test_ppo_update_is_the_tasks_unless_the_run_gives_one() -> None:
     def update(cfg: TrainConfig) -> tuple[float, int, int]:
+        cfg = with_task_defaults(cfg, resolve_task(cfg))
         alg = rsl_rl_config(cfg, get_mode("baseline"))["algorithm"]
         return alg["gamma"], alg["num_learning_epochs"], alg["vae_learning_epochs"]
 

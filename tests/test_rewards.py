@@ -8,8 +8,9 @@ import pytest
 import torch
 from stand_envs import stand_env
 
-from rl import rewards
+from rl.envs.assist import less_assist
 from rl.envs.state import EnvState
+from rl.tasks import rewards
 from robots import g1
 
 N = 7
@@ -108,11 +109,9 @@ def test_new_term_values():
 def test_less_assist_reward():
     eta = torch.tensor([[100.0, 0, 0, 0, 0, 0]]).expand(3, 6)
     force = torch.tensor([[0.0] * 6, [100.0, 0, 0, 0, 0, 0], [50.0, 0, 0, 0, 0, 0]])
-    assert rewards.less_assist(force, eta).tolist() == pytest.approx(
-        [1.0, math.exp(-2.0), math.exp(-1.0)]
-    )
+    assert less_assist(force, eta).tolist() == pytest.approx([1.0, math.exp(-2.0), math.exp(-1.0)])
     # No help possible (eta = 0): full reward, no division by zero.
-    assert rewards.less_assist(torch.zeros(2, 6), torch.zeros(2, 6)).tolist() == [1.0, 1.0]
+    assert less_assist(torch.zeros(2, 6), torch.zeros(2, 6)).tolist() == [1.0, 1.0]
 
 
 def test_env_adds_less_assist_reward_when_switched_on():
@@ -124,5 +123,5 @@ def test_env_adds_less_assist_reward_when_switched_on():
     env.set_less_assist_reward(True)
     _, _, _, extras = env.step(actions)
     wrench, bound = extras["assist"]["applied_wrench"], extras["assist"]["bound"]
-    expected = rewards.less_assist(wrench, bound) * env.task.less_assist_weight * env.step_dt_s
+    expected = less_assist(wrench, bound) * env.task.less_assist_weight * env.step_dt_s
     assert extras["log"]["Reward/less_assist"] == pytest.approx(float(expected.mean()))

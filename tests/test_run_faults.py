@@ -23,7 +23,7 @@ from test_training import tiny_config
 
 from a2cf_mb.cli import DEBUG_ENV, TRACEBACK_DIR_ENV, main
 from optimal_control.files import atomic_write_bytes
-from rl.run_folder import (
+from rl.runs.folder import (
     CHECKPOINT_DIR,
     CHECKPOINT_EVALS_LOG,
     CONFIG_FILE,
@@ -33,7 +33,7 @@ from rl.run_folder import (
     POLICY_BUNDLE_FILE,
     POLICY_FILE,
 )
-from rl.runner import train
+from rl.training.runner import train
 
 LAST = f"{CHECKPOINT_DIR}/{LAST_CHECKPOINT}"
 KEPT = (f"{CHECKPOINT_DIR}/model_1.pt", f"{CHECKPOINT_DIR}/model_2.pt")
@@ -347,7 +347,7 @@ def test_resume_removes_dead_writers_temp_files_and_exports_again(capsys, run):
     assert code == 0, err
     assert not any(p.exists() for p in stale) and live.exists()
     assert {p.name: p.read_bytes() for p in (run / CHECKPOINT_DIR).glob("*.pt")} == checkpoints
-    from rl.export import OnnxMotionPolicy
+    from rl.agents.export import OnnxMotionPolicy
 
     OnnxMotionPolicy(run / POLICY_FILE)  # readable again
 
@@ -370,7 +370,7 @@ def test_eval_falls_back_to_the_newest_readable_checkpoint(capsys, run):
 def test_a_failed_first_iteration_leaves_no_half_made_folder(
     capsys, monkeypatch, tmp_path, error, code, needle
 ):
-    from rl.runner import A2CFRunner
+    from rl.training.runner import A2CFRunner
 
     def fail(self, *args, **kwargs):
         raise error

@@ -15,7 +15,7 @@ import pytest
 from test_training import tiny_config
 
 from a2cf_mb.cli import DEBUG_ENV, main
-from rl.run_folder import (
+from rl.runs.folder import (
     CONFIG_FILE,
     LOCK_FILE,
     METRICS_FILE,
@@ -24,13 +24,13 @@ from rl.run_folder import (
     StaleLockWarning,
     _process_identity,
 )
-from rl.runner import train
-from rl.train_config import TrainConfig
+from rl.training.config import TrainConfig
+from rl.training.runner import train
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 HOLD = """
 import sys, time
-from rl.run_folder import RunFolderLock
+from rl.runs.folder import RunFolderLock
 with RunFolderLock(sys.argv[1]):
     print("held", flush=True)
     time.sleep(600)

@@ -5,16 +5,19 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from types import SimpleNamespace
 from typing import Any
 
 import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
-from rl.agents.modes import get_mode
-from rl.curriculum import PAPER_RULES, AssistCurriculum, CurriculumConfig, CurriculumEvent
-from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, A2CFRunner, rsl_rl_config
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.a2cf.algorithm1 import Algorithm1, RecordingEnv
+from rl.a2cf.config import PAPER_RULES, CurriculumConfig, get_mode
+from rl.a2cf.curriculum import AssistCurriculum
+from rl.runs.folder import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT
+from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+from rl.training.runner import A2CFRunner, rsl_rl_config
 
 P, H, PRIV, N, STEPS = 5, 3, 4, 8, 6
 ETA0 = torch.tensor([[20.0, 20.0, 20.0, 5.0, 5.0, 5.0]])
@@ -22,7 +25,7 @@ ETA0 = torch.tensor([[20.0, 20.0, 20.0, 5.0, 5.0, 5.0]])
 
 class DummyAssistEnv(VecEnv):
     """Observation groups of the A2CF contract, reward = -|motion action|^2, episodes of 10 steps;
-    the applied wrench is eta * tanh(raw) as in the real env, and Algorithm 1 runs inside."""
+    the applied wrench is eta * tanh(raw) as in the real env; Algorithm 1 is the runner's."""
 
     def __init__(self, seed: int = 0) -> None:
         self.num_envs, self.num_actions, self.max_episode_length = N, 29 + 6, 10
@@ -30,7 +33,8 @@ class DummyAssistEnv(VecEnv):
         self.generator = torch.Generator().manual_seed(seed)
         self.episode_length_buf = torch.zeros(N, dtype=torch.long)
         self.bound = ETA0.clone()
-        self.curriculum_event: CurriculumEvent | None = None
+        self.assist = SimpleNamespace(alone=torch.zeros(N, dtype=torch.bool))
+        self.task = SimpleNamespace(phase_names=("all",))
         self._obs = self._observe()
 
     def _observe(self) -> TensorDict:
@@ -47,9 +51,17 @@ class DummyAssistEnv(VecEnv):
             batch_size=[N],
         )
 
-    def attach_curriculum(self, event: CurriculumEvent) -> None:
-        self.curriculum_event = event
-        self.bound = event.curriculum.eta.clone()
+    def set_assist_bound(self, eta: torch.Tensor) -> None:
+        self.bound = eta.clone()
+
+    def set_assist_enabled(self, enabled: bool) -> None:
+        pass
+
+    def set_less_assist_reward(self, enabled: bool) -> None:
+        pass
+
+    def use_alone_envs(self, share: float, window: int) -> None:
+        assert share == 0.0
 
     def get_observations(self) -> TensorDict:
         return self._obs
@@ -63,44 +75,39 @@ class DummyAssistEnv(VecEnv):
         self._obs = self._observe()
         log: dict[str, float] = {"Train/mean_step_reward": float(reward.mean())}
         assist = {"applied_wrench": wrench, "phase": torch.zeros(N, dtype=torch.long)}
-        if self.curriculum_event is not None:
-            row = self.curriculum_event.on_step(assist, skill_progress=0.5)
-            if row is not None:
-                self.bound = self.curriculum_event.curriculum.eta.clone()
-                log["Curriculum/applied_force_n"] = row["applied_force_n"]
-        return self._obs, reward, time_outs, {"time_outs": time_outs, "log": log}
+        extras = {"time_outs": time_outs, "log": log, "assist": assist, "skill_progress": 0.5}
+        return self._obs, reward, time_outs, extras
 
     def state_dict(self) -> dict[str, Any]:
         return {
             "generator": self.generator.get_state(),
             "episode_length_buf": self.episode_length_buf.clone(),
             "obs": self._obs.clone(),
-            "event": self.curriculum_event.state_dict(),
+            "bound": self.bound.clone(),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.generator.set_state(state["generator"])
         self.episode_length_buf = state["episode_length_buf"].clone()
         self._obs = state["obs"].clone()
-        self.curriculum_event.load_state_dict(state["event"])
-        self.bound = self.curriculum_event.curriculum.eta.clone()
+        self.bound = state["bound"].clone()
 
 
 CFG = TrainConfig(
     num_steps_per_env=STEPS,
-    ppo=PPOConfig(num_learning_epochs=1, num_mini_batches=2, assist_init_noise_std=0.05),
+    ppo=PPOConfig(gamma=0.995, num_learning_epochs=1, num_mini_batches=2, assist_init_noise_std=0.05),
     model=ModelConfig(motion_hidden_dims=(8,), assist_hidden_dims=(8,), critic_hidden_dims=(8,),
-                      encoder_hidden_dims=(8,), latent_dim=2),
+                      encoder_hidden_dims=(8,), latent_dim=2, vae_learning_epochs=1),
 )  # fmt: skip
 
 
 def make_runner(run_dir, total: int, keep: int = 2) -> tuple[DummyAssistEnv, A2CFRunner]:
     torch.manual_seed(0)
     env = DummyAssistEnv()
-    env.attach_curriculum(
-        CurriculumEvent(AssistCurriculum(ETA0, CurriculumConfig(**PAPER_RULES)), STEPS)
-    )
-    runner = A2CFRunner(env, rsl_rl_config(CFG, get_mode("a2cf")), run_dir, get_mode("a2cf"),
+    curriculum = AssistCurriculum(ETA0, CurriculumConfig(**PAPER_RULES))
+    env.set_assist_bound(curriculum.eta)
+    learner = RecordingEnv(env, Algorithm1(curriculum))
+    runner = A2CFRunner(learner, rsl_rl_config(CFG, get_mode("a2cf")), run_dir, get_mode("a2cf"),
                         total_iterations=total, keep_interval=keep)  # fmt: skip
     return env, runner
 
@@ -119,7 +126,7 @@ def test_rsl_rl_loop_drives_the_curriculum_once_per_iteration(tmp_path) -> None:
     files = sorted(p.name for p in (tmp_path / CHECKPOINT_DIR).iterdir())
     assert files == ["last.pt", "model_2.pt", "model_3.pt"]  # every 2nd and the last one
     state = torch.load(tmp_path / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
-    assert state["completed_iterations"] == 3 and state["env"]["event"]["iteration"] == 3
+    assert state["completed_iterations"] == 3 and state["a2cf"]["iteration"] == 3
 
 
 def test_checkpoint_resume_matches_the_uninterrupted_loop(tmp_path) -> None:
@@ -129,7 +136,7 @@ def test_checkpoint_resume_matches_the_uninterrupted_loop(tmp_path) -> None:
     first.learn(2)
     env, resumed = make_runner(tmp_path / "part", total=4)
     resumed.load_checkpoint(tmp_path / "part" / CHECKPOINT_DIR / LAST_CHECKPOINT)
-    assert resumed.completed_iterations == 2 and env.curriculum_event.iteration == 2
+    assert resumed.completed_iterations == 2 and resumed.algorithm1.iteration == 2
     resumed.learn(2)
     keys = ("mean_step_reward", "applied_force_n", "losses", "eta_norm")
     assert [{k: r[k] for k in keys} for r in whole.history] == [

@@ -1,5 +1,5 @@
 """sim2sim drives every task's command and phases as training does, and the deployment bundle says
-what the command's columns hold (``rl.sim2sim.TaskLogic``, ``rl.export.command_parts``)."""
+what the command's columns hold (``rl.evaluation.sim2sim.TaskLogic``, ``rl.agents.export.command_parts``)."""
 
 from __future__ import annotations
 
@@ -13,21 +13,21 @@ import pytest
 import torch
 
 from a2cf_mb.cli import main as cli_main
-from rl import terminations
-from rl.agents import A2CFActor
-from rl.alone_eval import AloneEvalConfig
-from rl.curriculum import CurriculumConfig
+from rl.a2cf.config import CurriculumConfig
+from rl.agents.export import export_motion_policy
+from rl.agents.models import A2CFActor
 from rl.envs.config import EnvConfig
-from rl.export import export_motion_policy
-from rl.registry import TASKS, make_env
-from rl.runner import train
-from rl.sim2sim import Sim2SimConfig, run_sim2sim
-from rl.tasks.config import TaskConfig, quiet
-from rl.tasks.dance import DANCE_JOINTS as DANCE
-from rl.tasks.stand import STAND
+from rl.envs.task_schema import TaskConfig, quiet
+from rl.evaluation.config import AloneEvalConfig
+from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
+from rl.tasks import terminations
+from rl.tasks.dance.task import DANCE_JOINTS as DANCE
+from rl.tasks.registry import TASKS, make_env
+from rl.tasks.stand.task import STAND
 from rl.tasks.terms import TerminationTerm
-from rl.tasks.walk import WALK_FLAT
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.tasks.walk.task import WALK_FLAT
+from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+from rl.training.runner import train
 
 SIZES = dict(
     latent_dim=2, encoder_hidden_dims=(8,), motion_hidden_dims=(16,), assist_hidden_dims=(8,)
@@ -234,8 +234,8 @@ def test_sim2sim_link_contacts_end_an_episode(tmp_path) -> None:
 
 
 def test_sim2sim_pushes_the_robots_as_training_does() -> None:
-    from rl.sim2sim import _Pushes
-    from rl.tasks.config import PushConfig
+    from rl.envs.task_schema import PushConfig
+    from rl.evaluation.sim2sim import _Pushes
 
     cfg = PushConfig(interval_range_s=(3.0, 6.0), velocity_xy_mps=0.5)
     pushes = _Pushes(cfg, 16, seed=0)

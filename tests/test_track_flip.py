@@ -12,11 +12,10 @@ import pytest
 import torch
 from test_track_task import _on_reference
 
-from rl.alone_eval import rollout_alone
-from rl.registry import get_task, make_env
-from rl.runner import with_references
-from rl.tasks.config import quiet
+from rl.envs.task_schema import quiet
+from rl.evaluation.alone import rollout_alone
 from rl.tasks.dance.clips import grounded_shift
+from rl.tasks.registry import get_task, make_env, with_references
 from rl.tasks.track.flip import FLIP_HOLD_S, FlipEvaluationConfig
 from rl.tasks.track.library import hold_ends, pitch_turn_rad
 from rl.tasks.track.phases import ReferencePhaseConfig
@@ -132,7 +131,7 @@ def test_the_flip_judge_lands_the_reference_and_fails_a_statue(flip_artifact) ->
 
 # --------------------------------------------------------------------------- mode coach (ZEST)
 def test_the_coach_scale_follows_the_failure_rate() -> None:
-    from rl.coach_help import CoachHelpConfig
+    from rl.a2cf.config import CoachHelpConfig
 
     cfg = CoachHelpConfig(source="x")
     assert cfg.scale(1.0) == pytest.approx(0.6)  # failing: the most help
@@ -143,8 +142,8 @@ def test_the_coach_scale_follows_the_failure_rate() -> None:
 
 
 def test_mode_coach_needs_its_source_and_nothing_else_takes_it() -> None:
-    from rl.coach_help import CoachHelpConfig
-    from rl.train_config import TrainConfig
+    from rl.a2cf.config import CoachHelpConfig
+    from rl.training.config import TrainConfig
 
     with pytest.raises(ValueError, match="--coach-source"):
         TrainConfig(mode="coach")
@@ -157,10 +156,11 @@ def test_mode_coach_applies_the_scaled_coach_and_resumes_exactly(flip_artifact, 
     (zero once they are rare); two iterations resumed to four equal four in one go."""
     from test_training import PLAIN_KEYS, TINY_MODEL, TINY_PPO
 
-    from rl.coach_help import CoachHelpConfig, CoachHelpEnv
+    from rl.a2cf.coach_help import CoachHelpEnv
+    from rl.a2cf.config import CoachHelpConfig
     from rl.envs.config import EnvConfig
-    from rl.runner import train
-    from rl.train_config import TrainConfig
+    from rl.training.config import TrainConfig
+    from rl.training.runner import train
 
     task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
     env = make_env(task, 4, num_threads=1)

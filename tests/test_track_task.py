@@ -13,10 +13,10 @@ import pytest
 import torch
 
 from optimal_control.reference_sources import parse_frames
-from rl.registry import get_task, make_env
-from rl.runner import with_references
-from rl.tasks.config import quiet
-from rl.tasks.track import TRACK, terms, track_task
+from rl.envs.task_schema import quiet
+from rl.tasks.registry import get_task, make_env, with_references
+from rl.tasks.track import terms
+from rl.tasks.track.task import TRACK, track_task
 from rl.tasks.track.terms import ANCHOR, yaw_quat
 
 ARMS = [15, 22]  # the joints the wave clip moves: left and right shoulder pitch
@@ -157,7 +157,7 @@ def test_failures_are_counted_in_the_bin_where_episodes_fell(wave_clip) -> None:
 
 def test_a_statue_fails_the_skill_measure(wave_clip) -> None:
     """Holding the standing pose survives the gentle clip but does not track it."""
-    from rl.alone_eval import rollout_alone
+    from rl.evaluation.alone import rollout_alone
 
     env = make_env(quiet(track_task((wave_clip,))), 2, num_threads=1)
     try:
@@ -200,8 +200,8 @@ def test_dance_is_track_on_the_built_in_choreography() -> None:
 def test_a_warm_start_must_come_from_the_tracked_motion(wave_clip, tmp_path) -> None:
     from optimal_control.oracle import OracleConfig, solve_reference_oracle
     from optimal_control.reference_sources import load_reference
-    from rl.train_config import TrainConfig
-    from rl.warmstart import warmstart_eta0
+    from rl.a2cf.warmstart import warmstart_eta0
+    from rl.training.config import TrainConfig
 
     cfg = OracleConfig(alphas=(1.0,), video=False, progress=False, out=str(tmp_path / "wave"))
     _, folder = solve_reference_oracle("dance", load_reference(wave_clip), cfg, {})
@@ -255,9 +255,9 @@ def test_an_artifact_on_a_finer_grid_is_tracked_at_the_policy_rate(wave_clip, tm
     its warm start still recognises the tracked motion as its own."""
     from optimal_control.oracle import OracleConfig, solve_reference_oracle
     from optimal_control.reference_sources import load_reference
+    from rl.a2cf.warmstart import warmstart_eta0
     from rl.tasks.track.library import at_policy_rate, load_track_reference
-    from rl.train_config import TrainConfig
-    from rl.warmstart import warmstart_eta0
+    from rl.training.config import TrainConfig
 
     clip = load_reference(wave_clip)
     fine = at_policy_rate(clip, 0.005)
@@ -284,7 +284,7 @@ def test_actions_around_the_reference_follow_it_at_zero_action(wave_clip, tmp_pa
     not; a task without reference joints refuses the option."""
     from test_sim2sim import command_term, export_neutral_policy
 
-    from rl.sim2sim import Sim2SimConfig, run_sim2sim
+    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
 
     def tracking_error(around: bool) -> float:
         task = dataclasses.replace(quiet(track_task((wave_clip,))), actions_around_reference=around)

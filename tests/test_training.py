@@ -11,11 +11,12 @@ import torch
 
 from a2cf_mb.cli import main as cli_main
 from optimal_control.bounds import PAPER_ETA0
-from rl.curriculum import CurriculumConfig
+from rl.a2cf.config import CurriculumConfig
 from rl.envs.config import EnvConfig
-from rl.evaluate import EvalConfig, evaluate
-from rl.runner import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT, train
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+from rl.evaluation.policy import EvalConfig, evaluate
+from rl.runs.folder import CHECKPOINT_DIR, CURRICULUM_LOG, LAST_CHECKPOINT
+from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+from rl.training.runner import train
 
 WALK_ROW = PAPER_ETA0["walk"]["all"]
 
@@ -107,7 +108,7 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     assert first.iterations_done == 2
     ckpt = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     assert ckpt["completed_iterations"] == 2
-    eta_at_stop = ckpt["curriculum"]["eta"]
+    eta_at_stop = ckpt["a2cf"]["curriculum"]["eta"]
     # "kill" = the process stopped after iteration 2, here just after logging a third iteration
     # whose checkpoint was never written: the resume drops that line and redoes the iteration
     with open(first.run_dir / CURRICULUM_LOG, "a") as f:
@@ -128,7 +129,7 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     assert [row["iteration"] for row in metrics["iterations"]] == [0, 1, 2, 3]
     final = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     assert final["completed_iterations"] == 4
-    assert final["curriculum"]["num_updates"] == 4
+    assert final["a2cf"]["curriculum"]["num_updates"] == 4
     assert final["logger"]["tot_timesteps"] == 4 * cfg.env.num_envs * cfg.num_steps_per_env
 
 
@@ -224,7 +225,7 @@ def test_training_runs_rsl_rl_own_loop() -> None:
 
     from rsl_rl.runners import OnPolicyRunner
 
-    from rl.runner import A2CFRunner
+    from rl.training.runner import A2CFRunner
 
     assert A2CFRunner.learn is OnPolicyRunner.learn
     sources = Path(__file__).resolve().parents[1].joinpath("rl").rglob("*.py")
@@ -307,7 +308,7 @@ def test_half_created_and_damaged_runs_resume_or_say_what_to_do(tmp_path, capsys
 def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> None:
     """No offscreen GL (or no encoder): eval still writes its metrics and says why there is no
     video (fault injected where the renderer would fail)."""
-    import rl.evaluate
+    import rl.evaluation.policy
     from optimal_control.render import RenderUnavailableError
 
     run = train(tiny_config(tmp_path, "baseline", iterations=1), verbose=False).run_dir
@@ -315,7 +316,7 @@ def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> No
     def no_gl(*args, **kwargs):
         raise RenderUnavailableError("MuJoCo offscreen rendering failed with MUJOCO_GL=egl")
 
-    monkeypatch.setattr(rl.evaluate, "_render_qpos", no_gl)
+    monkeypatch.setattr(rl.evaluation.policy, "_render_qpos", no_gl)
     with pytest.warns(UserWarning, match="no video"):
         result = evaluate(run, EvalConfig(num_envs=2, num_steps=3, video=str(tmp_path / "v.mp4")))
     saved = json.loads((run / "eval.json").read_text())
@@ -326,9 +327,9 @@ def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> No
 def test_eval_video_frames_carry_a_tracking_tasks_reference() -> None:
     """Env 0's video frames: a dance env starts on its reference frame (the ghost's first pose is
     the robot's), then the ghost follows the clip, one pose per frame; stand has no ghost."""
-    from rl.evaluate import _VideoFrames
-    from rl.registry import get_task, make_env
-    from rl.tasks.config import quiet
+    from rl.envs.task_schema import quiet
+    from rl.evaluation.policy import _VideoFrames
+    from rl.tasks.registry import get_task, make_env
 
     env = make_env(quiet(get_task("dance")), 2, num_threads=1)
     try:
@@ -379,7 +380,7 @@ _MODES = [pytest.param(m, marks=() if m == "a2cf" else pytest.mark.slow)
 
 
 @pytest.mark.parametrize("mode", _MODES)
-@pytest.mark.parametrize("task", sorted(__import__("rl.registry", fromlist=["TASKS"]).TASKS))
+@pytest.mark.parametrize("task", sorted(__import__("rl.tasks.registry", fromlist=["TASKS"]).TASKS))
 def test_every_task_trains_in_every_mode(tmp_path, task: str, mode: str) -> None:
     """One iteration of every registered task in every mode (a2cf, with its alone envs, in the
     default suite; the others in the slow one): the walk tasks once crashed at their first alone
@@ -391,7 +392,7 @@ def test_every_task_trains_in_every_mode(tmp_path, task: str, mode: str) -> None
 
 
 def test_the_walks_alone_envs_move_their_own_terrain_levels() -> None:
-    from rl.registry import make_env
+    from rl.tasks.registry import make_env
 
     env = make_env("walk", 4, num_threads=1)
     try:

@@ -34,7 +34,7 @@ SCRIPT = textwrap.dedent(
     from a2cf_mb.cli import main
     from rl.envs.config import EnvConfig
     from rl.envs.vec_env import G1VecEnv
-    from rl.registry import get_task
+    from rl.tasks.registry import get_task
 
     env = G1VecEnv(EnvConfig(num_envs=2, num_threads=1), get_task("stand"))
     obs, reward, done, _ = env.step(torch.zeros(2, env.num_actions))

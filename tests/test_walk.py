@@ -15,17 +15,13 @@ from test_rewards import random_state
 from test_training import tiny_config
 
 from a2cf_mb.cli import main as cli_main
-from rl.evaluate import EvalConfig, evaluate
-from rl.runner import train
-from rl.tasks import walk_terms
+from rl.evaluation.policy import EvalConfig, evaluate
 from rl.tasks.terrain import HeightMap, Terrain, TerrainConfig, tile_boxes
-from rl.tasks.walk import (
-    WALK,
-    WALK_FLAT,
-    WALK_PAPER,
-    TerrainCurriculumConfig,
-    VelocityCommandConfig,
-)
+from rl.tasks.walk import terms as walk_terms
+from rl.tasks.walk.command import VelocityCommandConfig
+from rl.tasks.walk.curriculum import TerrainCurriculumConfig
+from rl.tasks.walk.task import WALK, WALK_FLAT, WALK_PAPER
+from rl.training.runner import train
 
 SMALL = TerrainConfig(num_rows=3, num_cols=7, tile_size_m=3.0, rough_cell_m=0.5, obstacle_count=4)
 """Every tile type at three levels, small tiles (fast to build and ray cast)."""

@@ -9,14 +9,15 @@ import math
 import pytest
 import torch
 
-from rl.coaches import PostureCoach, PostureCoachConfig
+from rl.a2cf.coaches import PostureCoach, PostureCoachConfig
+from rl.a2cf.config import WarmStartConfig
+from rl.a2cf.warmstart import distill_assist_head
 from rl.envs.config import EnvConfig
-from rl.registry import make_env
-from rl.runner import train
-from rl.tasks.config import quiet
-from rl.tasks.stand import STAND
-from rl.train_config import ModelConfig, PPOConfig, TrainConfig
-from rl.warmstart import WarmStartConfig, distill_assist_head
+from rl.envs.task_schema import quiet
+from rl.tasks.registry import make_env
+from rl.tasks.stand.task import STAND
+from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+from rl.training.runner import train
 
 TINY_MODEL = ModelConfig(motion_hidden_dims=(32,), assist_hidden_dims=(32, 32),
                          critic_hidden_dims=(32,), encoder_hidden_dims=(32,), latent_dim=4)  # fmt: skip
@@ -53,7 +54,7 @@ def test_posture_coach_helps_only_outside_its_band():
 
 
 def test_distilled_head_reproduces_the_coach_on_held_out_states():
-    from rl.runner import build_training
+    from rl.training.runner import build_training
 
     cfg = TrainConfig(mode="a2cf", env=EnvConfig(num_envs=24, num_threads=2), model=TINY_MODEL,
                       ppo=PPOConfig(num_mini_batches=2))  # fmt: skip
@@ -124,8 +125,8 @@ def test_motion_warm_start_clones_the_dance_reference_and_refuses_tasks_without_
     """--warmstart-motion: the motion head's joint targets match the reference's next frame on
     held-out states (the untrained head is nowhere near), also in mode baseline; a task without a
     time-indexed joint reference is refused with a message naming the flag."""
-    from rl.runner import build_training
-    from rl.warmstart import distill_motion_head
+    from rl.a2cf.warmstart import distill_motion_head
+    from rl.training.runner import build_training
 
     standing = {"actions_around_reference": False}  # the clone's target is a standing offset
     cfg = TrainConfig(task="dance", mode="baseline", env=EnvConfig(num_envs=16, num_threads=2),
@@ -165,9 +166,9 @@ def test_artifact_coach_follows_the_backflip_from_its_start_command(tmp_path, g1
     from optimal_control.artifact import build_artifact
     from optimal_control.reference import static_reference
     from optimal_control.wrench_qp import WrenchQP, WrenchQPConfig
-    from rl.coaches import ArtifactCoach
-    from rl.tasks import backflip_terms as bt
-    from rl.tasks.backflip import BACKFLIP
+    from rl.a2cf.coaches import ArtifactCoach
+    from rl.tasks.backflip import terms as bt
+    from rl.tasks.backflip.task import BACKFLIP
 
     ref = static_reference(g1_pin.q_stand, 10, 0.02, name="flip")
     ref.phase = np.array([0, 0, 0, 1, 1, 2, 2, 3, 3, 4])

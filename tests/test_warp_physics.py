@@ -32,12 +32,12 @@ from test_training import tiny_config
 
 from a2cf_mb.config_cli import add_config_arguments
 from rl.envs.config import EnvConfig
+from rl.envs.task_schema import quiet
 from rl.envs.vec_env import G1VecEnv
-from rl.registry import make_env
-from rl.runner import train
-from rl.tasks.config import quiet
-from rl.tasks.dance import DANCE_JOINTS as DANCE
-from rl.tasks.stand import STAND
+from rl.tasks.dance.task import DANCE_JOINTS as DANCE
+from rl.tasks.registry import make_env
+from rl.tasks.stand.task import STAND
+from rl.training.runner import train
 
 needs_warp = pytest.mark.skipif(
     importlib.util.find_spec("mujoco_warp") is None,

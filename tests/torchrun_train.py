@@ -14,7 +14,7 @@ from pathlib import Path
 import torch
 
 from a2cf_mb.cli import main
-from rl.runner import A2CFRunner
+from rl.training.runner import A2CFRunner
 
 _learn = A2CFRunner.learn
 

@@ -34,8 +34,8 @@ from a2cf_mb.bench.sim import SimBenchConfig, _rollout_rate
 from rl.envs.config import BACKENDS
 from rl.envs.model import CONTROL_SPEC
 from rl.envs.vec_env import G1VecEnv
-from rl.registry import get_task, make_env
-from rl.rewards import MissingContactSensorError
+from rl.tasks.registry import get_task, make_env
+from rl.tasks.rewards import MissingContactSensorError
 from robots import g1
 
 

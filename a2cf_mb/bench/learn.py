@@ -5,7 +5,7 @@ rollout length and iteration budget, into ``OUT/<task>_<mode>_s<seed>``, each ev
 policy alone every ``eval_interval`` iterations; a run folder that already holds a finished run
 (``metrics.json`` with the budget done) is not retrained, an unfinished one is resumed. The
 figures: env steps and wall time to the task's assistance-free target per run, with mean and
-spread over seeds (:mod:`rl.learning_study`). Then :func:`rl.compare.compare_runs` reads the run folders and writes the comparison
+spread over seeds (:mod:`rl.studies.learning`). Then :func:`rl.studies.compare.compare_runs` reads the run folders and writes the comparison
 figure and table (``OUT/compare.png``, ``OUT/compare.json``): terrain level (or skill progress),
 force bound, total and tracking reward against iterations and env steps; iterations and env steps
 to given levels and to negligible force.
@@ -22,9 +22,9 @@ from pathlib import Path
 
 from a2cf_mb.bench import register_benchmark
 from rl.envs.config import EnvConfig
-from rl.run_folder import CONFIG_FILE, METRICS_FILE
-from rl.runner import train
-from rl.train_config import TrainConfig
+from rl.runs.folder import CONFIG_FILE, METRICS_FILE
+from rl.training.config import TrainConfig
+from rl.training.runner import train
 
 
 @dataclass(frozen=True)
@@ -59,10 +59,10 @@ def _finished(run_dir: Path, iterations: int) -> bool:
 def run_learn_benchmark(cfg: LearnBenchConfig = LearnBenchConfig()) -> dict:
     """Train each mode and seed (or reuse / resume its run), then compare: env steps and wall
     time to the task's assistance-free target per run, mean and spread over seeds
-    (:func:`rl.learning_study.summarise_study`), and the training curves (:func:`compare_runs`)."""
-    from rl.alone_eval import AloneEvalConfig
-    from rl.compare import compare_runs
-    from rl.learning_study import summarise_study
+    (:func:`rl.studies.learning.summarise_study`), and the training curves (:func:`compare_runs`)."""
+    from rl.evaluation.config import AloneEvalConfig
+    from rl.studies.compare import compare_runs
+    from rl.studies.learning import summarise_study
 
     out = Path(cfg.out)
     runs, times = [], {}
@@ -95,7 +95,7 @@ def run_learn_benchmark(cfg: LearnBenchConfig = LearnBenchConfig()) -> dict:
 
 def format_results(results: dict) -> str:
     """The comparison table as text."""
-    from rl.compare import format_table
+    from rl.studies.compare import format_table
 
     lines = [format_table(results), "", "assistance-free target (env steps to it, per seed):"]
     for group in results["study"]["groups"]:

@@ -41,7 +41,7 @@ def _states(model: mujoco.MjModel, num: int, on_terrain: bool) -> np.ndarray:
     """Stand states (num, nstate), on successive tile centres (raised by their spawn height)."""
     import torch
 
-    from rl.tasks.walk import WALK_TERRAIN
+    from rl.tasks.walk.curriculum import WALK_TERRAIN
 
     lay = model_layout(model)
     rows = np.tile(lay.stand_state, (num, 1))
@@ -57,7 +57,7 @@ def _states(model: mujoco.MjModel, num: int, on_terrain: bool) -> np.ndarray:
 
 def run_terrain_benchmark(cfg: TerrainBenchConfig = TerrainBenchConfig()) -> dict:
     """Build both models, time both rollouts, return the figures."""
-    from rl.tasks.walk import WALK_TERRAIN
+    from rl.tasks.walk.curriculum import WALK_TERRAIN
 
     models = {
         "floor": build_physics_model(),

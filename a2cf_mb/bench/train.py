@@ -77,10 +77,10 @@ def measure_training(
     vae_epochs: int = 0,
 ) -> dict[str, Any]:
     """Stage times of ``cfg.iterations`` training iterations of one configuration."""
-    from rl.alone_eval import AloneEvalConfig
     from rl.envs.config import EnvConfig
-    from rl.runner import build_training, seed_everything
-    from rl.train_config import ModelConfig, PPOConfig, TrainConfig
+    from rl.evaluation.config import AloneEvalConfig
+    from rl.training.config import ModelConfig, PPOConfig, TrainConfig
+    from rl.training.runner import build_training, seed_everything
 
     train_cfg = TrainConfig(
         task=cfg.task,

@@ -9,7 +9,7 @@ from a2cf_mb.config_cli import add_config_arguments, config_from_args
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``compare`` subcommand."""
-    from rl.compare import CompareConfig
+    from rl.studies.compare import CompareConfig
 
     parser = subparsers.add_parser(
         "compare",
@@ -21,8 +21,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Call :func:`rl.compare.compare_runs`, print the table and write its json."""
-    from rl.compare import CompareConfig, compare_runs, format_table
+    """Call :func:`rl.studies.compare.compare_runs`, print the table and write its json."""
+    from rl.studies.compare import CompareConfig, compare_runs, format_table
 
     cfg = config_from_args(CompareConfig, args)
     result = compare_runs(args.run_dirs, cfg.out, cfg.levels, cfg.negligible_force_n)

@@ -10,7 +10,7 @@ from a2cf_mb.config_cli import add_config_arguments, config_from_args
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``eval`` subcommand."""
-    from rl.evaluate import EvalConfig
+    from rl.evaluation.policy import EvalConfig
 
     parser = subparsers.add_parser(
         "eval",
@@ -22,8 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Call :func:`rl.evaluate.evaluate` and print its result."""
-    from rl.evaluate import EvalConfig, evaluate
+    """Call :func:`rl.evaluation.policy.evaluate` and print its result."""
+    from rl.evaluation.policy import EvalConfig, evaluate
 
     result = evaluate(args.run_dir, config_from_args(EvalConfig, args))
     print(json.dumps(result, indent=2))

@@ -9,7 +9,7 @@ from a2cf_mb.config_cli import add_config_arguments, config_from_args
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``eval-curve`` subcommand."""
-    from rl.alone_eval import AloneEvalConfig
+    from rl.evaluation.config import AloneEvalConfig
 
     parser = subparsers.add_parser(
         "eval-curve",
@@ -28,10 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Call :func:`rl.evaluate.evaluate_checkpoints` and print where the target was reached."""
-    from rl.alone_eval import AloneEvalConfig
-    from rl.evaluate import evaluate_checkpoints
-    from rl.run_folder import CHECKPOINT_EVALS_LOG
+    """Call :func:`rl.evaluation.policy.evaluate_checkpoints` and print where the target was reached."""
+    from rl.evaluation.config import AloneEvalConfig
+    from rl.evaluation.policy import evaluate_checkpoints
+    from rl.runs.folder import CHECKPOINT_EVALS_LOG
 
     if args.every_iterations < 1:
         raise ValueError(f"--every-iterations must be >= 1, got {args.every_iterations}")

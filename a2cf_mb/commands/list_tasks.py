@@ -17,7 +17,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print one block per task (or JSON)."""
-    from rl.registry import describe_tasks
+    from rl.tasks.registry import describe_tasks
 
     rows = describe_tasks()
     if args.json:

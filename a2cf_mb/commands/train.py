@@ -16,9 +16,9 @@ ALWAYS_APPLIED_ON_RESUME = ("resume", "iterations")
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``train`` subcommand: TrainConfig fields, nested ones prefixed (``--env-*``,
     ``--ppo-*``, ``--model-*``, ``--curriculum-*``), and the task's fields as ``--task-*``."""
-    from rl.registry import get_task
-    from rl.tasks.config import TaskConfig
-    from rl.train_config import TrainConfig
+    from rl.envs.task_schema import TaskConfig
+    from rl.tasks.registry import get_task
+    from rl.training.config import TrainConfig
 
     parser = subparsers.add_parser(
         "train",
@@ -84,10 +84,11 @@ def task_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Build the TrainConfig from the flags and call :func:`rl.runner.train`."""
-    from rl.registry import get_task
-    from rl.runner import load_run_config, train
-    from rl.train_config import TrainConfig
+    """Build the TrainConfig from the flags and call :func:`rl.training.runner.train`."""
+    from rl.runs.folder import load_run_config
+    from rl.tasks.registry import get_task
+    from rl.training.config import TrainConfig
+    from rl.training.runner import train
 
     overrides = task_overrides(args)
     if args.resume:

@@ -96,7 +96,7 @@ class A2CFActor(MLPModel):
         encoder_hidden_dims: history-encoder hidden layers.
         motion_hidden_dims: motion-head hidden layers.
         assist_hidden_dims: assist-head hidden layers (sizes: no defaults here, they live once in
-            :class:`rl.train_config.ModelConfig`).
+            :class:`rl.training.config.ModelConfig`).
         num_motion_actions: joint actions (29 for the G1).
         activation: activation name.
         obs_normalization: empirical normalisation of the policy and privileged observations.
@@ -284,7 +284,7 @@ class A2CFActor(MLPModel):
         return self.motion_policy()
 
     def as_onnx(self, verbose: bool = False) -> nn.Module:
-        """ONNX-ready motion policy (no assist head); see :mod:`rl.export`."""
+        """ONNX-ready motion policy (no assist head); see :mod:`rl.agents.export`."""
         return self.motion_policy()
 
 

@@ -1,5 +1,6 @@
 """The assist half of the action as the env applies it: bound, squash, mask, frame, the applied
-wrench, the less-assist reward and the curriculum's statistics (the env's assist part)."""
+wrench and the less-assist reward (the env's assist part; Algorithm 1 is the runner's,
+:mod:`rl.a2cf.algorithm1`)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,7 @@ from typing import Any
 
 import torch
 
-from rl import rewards
-from rl.assist import DEFAULT_RANDOM_MASK_PROB, WRENCH_DIM, AssistState
-from rl.curriculum import WRENCH_AXES, CurriculumEvent
+from rl.envs.assist import DEFAULT_RANDOM_MASK_PROB, WRENCH_DIM, AssistState, less_assist
 from rl.envs.state import heading_to_world
 
 
@@ -25,8 +24,8 @@ class AssistAction:
 
     Everything that reads or writes F is in this frame: ``applied_wrench`` (here, in
     :class:`rl.envs.state.EnvState` and ``extras["assist"]``), the bound eta (num_phases, 6) and
-    its axes :data:`rl.curriculum.WRENCH_AXES`, the curriculum's per-axis statistics, the
-    less-assist reward, the coaches' labels (:mod:`rl.coaches`, :mod:`rl.warmstart`) and the
+    its axes :data:`rl.envs.assist.WRENCH_AXES`, the curriculum's per-axis statistics, the
+    less-assist reward, the coaches' labels (:mod:`rl.a2cf.coaches`, :mod:`rl.a2cf.warmstart`) and the
     oracle's eta0 (:mod:`optimal_control.bounds`, derived on the reference's heading axes).
 
     Why the heading frame: episodes start at a random yaw and nothing the force agent observes
@@ -60,7 +59,6 @@ class AssistAction:
         self.applied_wrench = torch.zeros(num_envs, WRENCH_DIM, device=device)
         self.mask = torch.ones(num_envs, WRENCH_DIM, device=device)
         self.alone = torch.zeros(num_envs, dtype=torch.bool, device=device)
-        self.curriculum_event: CurriculumEvent | None = None
         self.step_extras: dict[str, torch.Tensor] = {}  # extras["assist"] of the last step
 
     @property
@@ -91,26 +89,10 @@ class AssistAction:
         """Pay (or stop paying) the less-assist reward (:meth:`rewards`)."""
         self.settings.less_assist_reward = bool(enabled)
 
-    def attach_curriculum(self, event: CurriculumEvent | None, task_name: str) -> None:
-        """Run Algorithm 1 from this part's statistics and apply its current state now; ``None``
-        detaches it (the last bounds stay)."""
-        self.curriculum_event = event
-        share = event.curriculum.cfg.alone_share if event is not None else 0.0
+    def set_alone_share(self, share: float) -> None:
+        """Keep the first ``share`` of the envs without help (the alone envs); 0: none."""
         num = self.alone.numel()
         self.alone = torch.arange(num, device=self.device) < round(share * num)
-        if event is not None:
-            if event.curriculum.num_phases != len(self.phase_names):
-                raise ValueError(
-                    f"curriculum has {event.curriculum.num_phases} phases, task '{task_name}' "
-                    f"has {len(self.phase_names)}"
-                )
-            self._apply_curriculum()
-
-    def _apply_curriculum(self) -> None:
-        cur = self.curriculum_event.curriculum
-        self.set_bound(cur.eta)
-        self.set_enabled(cur.assist_enabled)
-        self.set_less_assist_reward(cur.less_assist_reward)
 
     def apply(self, raw: torch.Tensor, phase: torch.Tensor) -> torch.Tensor:
         """F (N, 6) in the heading frame for raw head outputs (N, 6) of envs in ``phase`` (N,)."""
@@ -135,7 +117,7 @@ class AssistAction:
         if not self.settings.less_assist_reward:
             return {}
         extras = self.step_extras
-        value = rewards.less_assist(extras["applied_wrench"], extras["bound"])
+        value = less_assist(extras["applied_wrench"], extras["bound"])
         return {"less_assist": value * (self.less_assist_weight * step_dt_s)}
 
     def log(self) -> dict[str, float]:
@@ -146,44 +128,8 @@ class AssistAction:
             "Assist/torque_norm_nm": float(wrench[:, 3:].norm(dim=-1).mean()),
         }
 
-    def curriculum_step(
-        self, skill_progress: float, alone_progress: float | None = None
-    ) -> dict[str, float]:
-        """Hand this step (the helped envs' rows) to the curriculum; at a rollout's end apply its
-        update and return the update's log (else ``{}``)."""
-        if self.curriculum_event is None:
-            return {}
-        extras = self.step_extras
-        if self.alone.any():
-            extras = {key: value[~self.alone] for key, value in extras.items()}
-        row = self.curriculum_event.on_step(extras, skill_progress, alone_progress)
-        if row is None:
-            return {}
-        self._apply_curriculum()
-        log = {
-            "Curriculum/applied_force_n": float(row["applied_force_n"]),
-            "Curriculum/skill_progress": float(row["skill_progress"]),
-            **(
-                {"Curriculum/skill_progress_alone": float(row["alone_progress"])}
-                if row["alone_progress"] is not None
-                else {}
-            ),  # fmt: skip
-            "Curriculum/assist_enabled": float(row["assist_enabled"]),
-            "Curriculum/less_assist_reward": float(row["less_assist_reward"]),
-        }
-        for phase, bounds, norm, applied in zip(
-            self.phase_names, row["eta"], row["applied_norm"], row["applied_abs_per_axis"],
-            strict=True,
-        ):  # fmt: skip
-            for axis, value, used in zip(WRENCH_AXES, bounds, applied, strict=True):
-                log[f"Curriculum/eta_{phase}_{axis}"] = float(value)
-                log[f"Curriculum/applied_abs_{phase}_{axis}"] = float(used)
-            log[f"Curriculum/applied_wrench_norm_{phase}"] = float(norm)
-        return log
-
     def state_dict(self) -> dict[str, Any]:
-        """Settings, this step's wrench and mask, and the curriculum event."""
-        event = self.curriculum_event
+        """Settings, this step's wrench and mask."""
         return {
             "bound": self.settings.bound.clone(),
             "enabled": self.settings.enabled,
@@ -191,18 +137,13 @@ class AssistAction:
             "less_assist_reward": self.settings.less_assist_reward,
             "applied_wrench": self.applied_wrench.clone(),
             "mask": self.mask.clone(),
-            "curriculum_event": event.state_dict() if event is not None else None,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output (a saved curriculum needs one attached)."""
+        """Restore :meth:`state_dict` output."""
         self.settings.set_bound(state["bound"])
         self.settings.enabled = bool(state["enabled"])
         self.settings.set_mask_prob(state["mask_prob"])
         self.settings.less_assist_reward = bool(state["less_assist_reward"])
         self.applied_wrench = state["applied_wrench"].to(self.device, copy=True)
         self.mask = state["mask"].to(self.device, copy=True)
-        if state["curriculum_event"] is not None:
-            if self.curriculum_event is None:
-                raise ValueError("env checkpoint has a curriculum; attach one before loading")
-            self.curriculum_event.load_state_dict(state["curriculum_event"])

@@ -4,7 +4,7 @@ What a task decides (scene, initial state, pushes, randomisation ranges, observa
 episode length) lives in its :class:`rl.envs.task_schema.TaskConfig`; the physics step itself
 (0.005 s) in :class:`robots.mujoco_model.MujocoModelConfig`; the assist switches (on/off, zeta,
 less-assist reward) are set at run time by the runner (:meth:`G1VecEnv.set_random_mask_prob`, ...),
-the paper's zeta default living once in :data:`rl.assist.DEFAULT_RANDOM_MASK_PROB`.
+the paper's zeta default living once in :data:`rl.envs.assist.DEFAULT_RANDOM_MASK_PROB`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ BACKENDS = ("mujoco", "warp")
 
 MAX_NUM_ENVS = 2**24
 """Most envs one :class:`rl.envs.G1VecEnv` may hold (the most transitions one training iteration
-may collect, :data:`rl.train_config.MAX_ROLLOUT_TRANSITIONS`) [-]."""
+may collect, :data:`rl.training.config.MAX_ROLLOUT_TRANSITIONS`) [-]."""
 
 
 @dataclass(frozen=True)

@@ -4,11 +4,11 @@ A task is one frozen :class:`TaskConfig` value (variants by :func:`dataclasses.r
 initial-state distribution, pushes and randomisation ranges, observation terms per group, reward
 and termination terms, command generator, phase machine, skill measure and default assist bounds.
 :class:`rl.envs.G1VecEnv` evaluates these; it never branches on which task it runs. A new task is
-one module defining such a value plus a line in :mod:`rl.registry`.
+one module defining such a value plus a line in :mod:`rl.tasks.registry`.
 
 It lives beside the env, with the term types (:mod:`rl.envs.terms`) and the component protocols
 (:mod:`rl.envs.components`), so that ``rl.envs`` imports nothing from ``rl.tasks``; task modules
-import these names from :mod:`rl.tasks.config`, which re-exports them.
+import these names from here.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ motion and assist halves of the action (:mod:`rl.envs.assist_action` states the 
 frame), observation groups, pushes, randomiser, reset events, contact timers
 and the task's components. :meth:`G1VecEnv.step` is the list of stages, torch operations over the
 whole batch. Everything task-specific comes from a :class:`rl.envs.task_schema.TaskConfig`; this
-module never branches on a task. The A2CF curriculum (Algorithm 1) runs in the assist part as an
-iteration-rate event, so training uses rsl-rl's own ``OnPolicyRunner.learn``.
+module never branches on a task, and knows no curriculum: Algorithm 1 is the runner's, once
+per iteration (:mod:`rl.a2cf.algorithm1`), through the setters below.
 """
 
 from __future__ import annotations
@@ -20,8 +20,7 @@ import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
-from rl.assist import WRENCH_DIM
-from rl.curriculum import CurriculumEvent
+from rl.envs.assist import WRENCH_DIM
 from rl.envs.assist_action import AssistAction
 from rl.envs.config import EnvConfig
 from rl.envs.contact_timers import ContactTimers
@@ -123,7 +122,6 @@ class G1VecEnv(VecEnv):
     randomization_params = property(lambda self: self.randomizer.params, doc="(N, 5) domain.")
     applied_wrench = property(lambda self: self.assist.applied_wrench, doc="(N, 6) heading F.")
     assist_mask = property(lambda self: self.assist.mask, doc="(N, 6) this step's random mask.")
-    curriculum_event = property(lambda self: self.assist.curriculum_event, doc="Algorithm 1.")
     command_gen = property(lambda self: self.task_components.command_gen, doc="The command.")
     phase_machine = property(lambda self: self.task_components.phase_machine, doc="Phases.")
     skill = property(lambda self: self.task_components.skill, doc="The skill measure.")
@@ -157,12 +155,11 @@ class G1VecEnv(VecEnv):
         """Add (or stop adding) the less-assist reward exp(-2|F|/|eta|) to the task reward."""
         self.assist.set_less_assist_reward(enabled)
 
-    def attach_curriculum(self, event: CurriculumEvent | None) -> None:
-        """Run Algorithm 1 inside the env (every ``event.steps_per_iteration`` steps) and apply its
-        current state now; ``None`` detaches it (the env keeps its last bounds)."""
-        self.assist.attach_curriculum(event, self.task.name)
-        share = event.curriculum.cfg.alone_share if event is not None else 0.0
-        self.task_components.track_alone(event.curriculum.cfg.alone_window if share > 0 else None)
+    def use_alone_envs(self, share: float, window: int) -> None:
+        """Keep the first ``share`` of the envs without help, their skill measured in a window
+        of ``window`` finished episodes of their own; ``share`` 0: no alone envs."""
+        self.assist.set_alone_share(share)
+        self.task_components.track_alone(window if share > 0 else None)
 
     # ---------------------------------------------------------------- VecEnv API
     def get_observations(self) -> TensorDict:
@@ -228,7 +225,6 @@ class G1VecEnv(VecEnv):
         if alone_progress is not None:
             log["Episode/skill_progress_alone"] = alone_progress
         log.update(self.task_components.log())
-        log.update(self.assist.curriculum_step(progress, alone_progress))
         extras = {"time_outs": time_outs, "log": log, "assist": self.assist.step_extras,
                   "skill_progress": progress}  # fmt: skip
         if alone_progress is not None:

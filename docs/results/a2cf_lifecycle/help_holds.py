@@ -14,9 +14,9 @@ import sys
 
 import torch
 
-from rl.registry import get_task, make_env
-from rl.train_config import TrainConfig
-from rl.warmstart import choose_coach, warmstart_eta0
+from rl.a2cf.warmstart import choose_coach, warmstart_eta0
+from rl.tasks.registry import get_task, make_env
+from rl.training.config import TrainConfig
 
 NUM_ENVS, STEPS, ACTION_STD = 32, 500, 0.5
 

@@ -8,7 +8,7 @@ import argparse
 from collections import defaultdict
 from pathlib import Path
 
-from rl.learning_study import lifecycle_figure, run_summary, summarise_study
+from rl.studies.learning import lifecycle_figure, run_summary, summarise_study
 
 
 def main() -> None:

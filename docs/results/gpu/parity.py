@@ -21,8 +21,8 @@ import time
 
 import torch
 
-from rl.registry import make_env
-from rl.tasks.config import quiet
+from rl.envs.task_schema import quiet
+from rl.tasks.registry import make_env
 
 
 def pair(task: str, num_envs: int, device: str):
@@ -42,7 +42,7 @@ def max_abs_diff(a: torch.Tensor, b: torch.Tensor) -> float:
 
 def quiet_task(name: str):
     """The registered task without pushes, randomisation or observation noise."""
-    from rl.registry import get_task
+    from rl.tasks.registry import get_task
 
     return quiet(get_task(name))
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from rl.learning_study import summarise_study
+from rl.studies.learning import summarise_study
 
 
 def main() -> None:

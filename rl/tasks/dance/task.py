@@ -17,10 +17,10 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from rl import rewards, terminations
-from rl.curriculum import paper_bound_rows
+from rl.envs.assist import paper_bound_rows
+from rl.envs.task_schema import InitialStateConfig, PushConfig, SkillTarget, TaskConfig
+from rl.tasks import rewards, terminations
 from rl.tasks.components import SinglePhaseConfig
-from rl.tasks.config import InitialStateConfig, PushConfig, SkillTarget, TaskConfig
 from rl.tasks.dance.clips import BUILTIN_CLIP
 from rl.tasks.dance.command import ClipTrackingConfig
 from rl.tasks.dance.evaluation import DanceEvaluationConfig
@@ -31,7 +31,7 @@ from rl.tasks.dance.terms import (
     track_joint_position,
     track_joint_rms,
 )
-from rl.tasks.stand import STAND_OBSERVATIONS
+from rl.tasks.stand.task import STAND_OBSERVATIONS
 from rl.tasks.terms import RewardTerm, TerminationTerm
 
 

@@ -27,9 +27,9 @@ from typing import Any
 
 import torch
 
+from rl.tasks.terminations import base_tilted
 from rl.tasks.track.evaluation import TrackEvaluationConfig, TrackEvaluator
 from rl.tasks.track.library import pitch_increment_rad
-from rl.terminations import base_tilted
 
 FLIP_HOLD_S = 1.5
 """Seconds a flip reference's first and last frames are held: the robot starts standing, and
@@ -141,7 +141,7 @@ def for_flips(task: Any, refs: list, turn_rad: float) -> Any:
     """``task`` (a tracking task) set up for flip references ``refs`` that turn ``turn_rad``
     [rad]: ends held :data:`FLIP_HOLD_S`, the episode long enough for the whole reference, the
     flip evaluation and a target of half the flips landed from standing."""
-    from rl.tasks.config import SkillTarget
+    from rl.envs.task_schema import SkillTarget
 
     duration = max(r.duration_s for r in refs) + 2 * FLIP_HOLD_S
     return dataclasses.replace(

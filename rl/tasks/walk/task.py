@@ -15,10 +15,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from rl import rewards, terminations
-from rl.curriculum import paper_bound_rows
-from rl.tasks.components import SinglePhaseConfig, SurvivalSkillConfig
-from rl.tasks.config import (
+from rl.envs.assist import paper_bound_rows
+from rl.envs.task_schema import (
     ObservationsConfig,
     PushConfig,
     RandomizationConfig,
@@ -26,7 +24,9 @@ from rl.tasks.config import (
     SkillTarget,
     TaskConfig,
 )
-from rl.tasks.stand import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, STAND_OBSERVATIONS
+from rl.tasks import rewards, terminations
+from rl.tasks.components import SinglePhaseConfig, SurvivalSkillConfig
+from rl.tasks.stand.task import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, STAND_OBSERVATIONS
 from rl.tasks.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 from rl.tasks.walk import terms as walk_terms
 from rl.tasks.walk.command import VelocityCommandConfig

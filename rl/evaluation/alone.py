@@ -1,5 +1,5 @@
 """The motion policy alone: one episode per fresh env, assistance off, scored against the task's
-skill target. Shared by ``a2cf-mb eval`` (:func:`rl.evaluate.evaluate`), the evaluations during
+skill target. Shared by ``a2cf-mb eval`` (:func:`rl.evaluation.policy.evaluate`), the evaluations during
 training (every ``eval_interval`` iterations, :class:`AloneEvaluation`) and ``a2cf-mb eval-curve``
 (the kept checkpoints of a finished run).
 
@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,29 +22,14 @@ from tensordict import TensorDict
 
 from optimal_control.files import atomic_write_text
 from rl.agents.models import ASSIST_ACTION_DIM
-from rl.config_bounds import MAX_SEED, check_range
-from rl.envs.config import MAX_NUM_ENVS, EnvConfig
+from rl.envs.config import EnvConfig
+from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.run_folder import EVALS_DIR, EVALS_LOG
-from rl.tasks.config import TaskConfig
+from rl.evaluation.config import AloneEvalConfig
+from rl.runs.folder import EVALS_DIR, EVALS_LOG
 
 MotionPolicyFn = Callable[[TensorDict], torch.Tensor]
 """``policy(obs) -> motion actions (N, 29)`` from the env's observation groups."""
-
-
-@dataclass(frozen=True)
-class AloneEvalConfig:
-    """Evaluations of the motion policy alone during training."""
-
-    interval: int = 50  # iterations between two evaluations (and at the end); 0: none [-]
-    num_envs: int = 32  # fresh envs, one episode each [-]
-    seed: int = 10_000  # seed of the evaluation envs (never a training seed) [-]
-
-    def __post_init__(self) -> None:
-        """Bound every field where it is declared; ``--eval-*`` are its flags."""
-        check_range(self.interval, "--eval-interval", 0)
-        check_range(self.num_envs, "--eval-num-envs", 1, MAX_NUM_ENVS)
-        check_range(self.seed, "--eval-seed", 0, MAX_SEED)
 
 
 def rollout_alone(

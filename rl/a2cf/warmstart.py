@@ -16,56 +16,27 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import torch
 from tensordict import TensorDict
 
+from rl.a2cf.config import WarmStartConfig
 from rl.agents.models import A2CFActor
-from rl.assist import raw_from_wrench
-from rl.curriculum import WRENCH_AXES
+from rl.envs.assist import WRENCH_AXES, raw_from_wrench
 from rl.envs.vec_env import G1VecEnv
 from robots import g1
 
 if TYPE_CHECKING:
-    from rl.runner import A2CFRunner
-    from rl.tasks.config import TaskConfig
-    from rl.train_config import TrainConfig
+    from rl.envs.task_schema import TaskConfig
+    from rl.training.config import TrainConfig
 
 Coach = Callable[[G1VecEnv], torch.Tensor]
 """A coach: the env (its ``env_state``, and for reference-tracking coaches its command's time along
 the reference) -> pelvis wrench (N, 6) [N, Nm] in the robot's heading frame (the assist action's
 frame, :class:`rl.envs.assist_action.AssistAction`), within the current bound."""
-
-
-@dataclass(frozen=True)
-class WarmStartConfig:
-    """DAgger rounds, regression and the head's initial std after the warm start."""
-
-    rounds: int = (
-        3  # DAgger rounds (round 0 applies the coach's wrench, later ones the student's) [-]
-    )
-    steps_per_round: int = 48  # env steps collected per round [-]
-    epochs: int = 30  # passes over the dataset after each round [-]
-    batch_size: int = 512  # regression mini-batch [-]
-    learning_rate: float = 1e-3  # Adam learning rate of the assist head [-]
-    held_out: float = (
-        0.2  # share of the last round's samples kept out of the fit for the report [-]
-    )
-    assist_std: float = 0.3  # std of the raw assist actions after the warm start (before tanh) [-]
-    seed: int = 0  # shuffling seed [-]
-
-    def __post_init__(self) -> None:
-        if min(self.rounds, self.steps_per_round, self.epochs, self.batch_size) < 1:
-            raise ValueError(
-                "warm start rounds, steps_per_round, epochs and batch_size must be >= 1"
-            )
-        if not 0.0 < self.held_out < 1.0:
-            raise ValueError(f"warm start held_out must be in (0, 1), got {self.held_out}")
-        if self.assist_std <= 0:
-            raise ValueError(f"warm start assist_std must be > 0, got {self.assist_std}")
 
 
 def _assist_mean(actor: A2CFActor, obs: TensorDict) -> torch.Tensor:
@@ -259,7 +230,7 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
     """eta0 from the oracle artifact named by ``--warmstart`` (None for a built-in coach).
 
     The artifact's task and phases must be the training task's."""
-    from rl.coaches import COACHES
+    from rl.a2cf.coaches import COACHES
 
     if not cfg.warmstart or cfg.warmstart in COACHES:
         return None
@@ -324,7 +295,7 @@ def _tracks_the_artifacts_motion(folder: Path, task: TaskConfig) -> bool:
 def choose_coach(source: str, env: G1VecEnv) -> tuple[Coach, str]:
     """The coach ``--warmstart source`` names (a built-in coach or an oracle artifact folder) for
     ``env``'s task, and a sentence saying which it is (for ``warmstart.json``)."""
-    from rl.coaches import COACHES, ArtifactCoach
+    from rl.a2cf.coaches import COACHES, ArtifactCoach
 
     if source in COACHES:
         return COACHES[source](env), f"built-in coach '{source}'"
@@ -341,19 +312,15 @@ def choose_coach(source: str, env: G1VecEnv) -> tuple[Coach, str]:
     )
 
 
-def warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
-    """Before PPO (curriculum detached meanwhile): ``--warmstart-motion`` clones the motion head
-    from the task's reference, then ``--warmstart`` distils the coach into the assist head (in the
-    states the cloned motion policy visits). The report of each goes into ``warmstart.json``."""
-    event = env.curriculum_event
-    env.attach_curriculum(None)  # the distillation's env steps are no rollout of Algorithm 1
+def warm_start(cfg: TrainConfig, env: G1VecEnv, actor: Any, learner_env: Any) -> dict[str, Any]:
+    """Before PPO: ``--warmstart-motion`` clones the motion head of ``actor`` from the task's
+    reference (stepping ``learner_env``, the env as the learner sees it), then ``--warmstart``
+    distils the coach into the assist head (in the states the cloned motion policy visits). The
+    report of each goes into ``warmstart.json``."""
     report: dict[str, Any] = {}
     if cfg.warmstart_motion:
-        report["motion"] = distill_motion_head(runner.alg.actor, runner.env, cfg.distill)
+        report["motion"] = distill_motion_head(actor, learner_env, cfg.distill)
     if cfg.warmstart:
         coach, source = choose_coach(cfg.warmstart, env)
-        report.update(
-            coach=source, **distill_assist_head(runner.alg.actor, env, coach, cfg.distill)
-        )
-    env.attach_curriculum(event)
+        report.update(coach=source, **distill_assist_head(actor, env, coach, cfg.distill))
     return report

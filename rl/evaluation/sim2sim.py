@@ -45,19 +45,19 @@ import mujoco
 import numpy as np
 import torch
 
+from rl.agents.export import OnnxMotionPolicy
 from rl.envs.contact_timers import ContactTimers
 from rl.envs.model import contact_bodies
 from rl.envs.randomization import nominal_params
 from rl.envs.state import EnvState, quat_rotate_inverse
+from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import GRAVITY_MPS2
-from rl.export import OnnxMotionPolicy
-from rl.run_folder import (
+from rl.runs.folder import (
     POLICY_BUNDLE_FILE,
     REEXPORT_ADVICE,
     DamagedRunFileError,
     read_run_json,
 )
-from rl.tasks.config import TaskConfig
 from robots import g1
 from robots.mujoco_model import FLOOR_GEOM, STAND_KEYFRAME, MujocoModelConfig, build_mujoco_spec
 

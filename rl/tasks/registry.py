@@ -1,5 +1,5 @@
 """The task registry, above the env and the tasks (both import neither this nor each other's
-registry): task name -> :class:`rl.tasks.config.TaskConfig`, and :func:`make_env`.
+registry): task name -> :class:`rl.envs.task_schema.TaskConfig`, and :func:`make_env`.
 
 A new task is one module defining its ``TaskConfig`` plus one line in :data:`TASKS` (or a call of
 :func:`register_task` from user code or a test).
@@ -8,16 +8,19 @@ A new task is one module defining its ``TaskConfig`` plus one line in :data:`TAS
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rl.envs.config import EnvConfig
+from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.tasks.backflip import BACKFLIP
-from rl.tasks.config import TaskConfig
-from rl.tasks.dance import DANCE_JOINTS, DANCE_PAPER
-from rl.tasks.stand import STAND
-from rl.tasks.track import DANCE, TRACK
-from rl.tasks.walk import WALK, WALK_FLAT, WALK_PAPER
+from rl.tasks.backflip.task import BACKFLIP
+from rl.tasks.dance.task import DANCE_JOINTS, DANCE_PAPER
+from rl.tasks.stand.task import STAND
+from rl.tasks.track.task import DANCE, TRACK
+from rl.tasks.walk.task import WALK, WALK_FLAT, WALK_PAPER
+
+if TYPE_CHECKING:
+    from rl.training.config import TrainConfig
 
 TASKS: dict[str, TaskConfig] = {
     STAND.name: STAND,
@@ -91,3 +94,32 @@ def describe_tasks(history_length: int = EnvConfig.history_length) -> list[dict[
         finally:
             env.close()
     return rows
+
+
+def resolve_task(cfg: TrainConfig) -> TaskConfig:
+    """The run's task: the registered config with the run's overrides applied."""
+    task = get_task(cfg.task).with_overrides(cfg.task_overrides)
+    return with_references(task, cfg.reference, cfg.reference_frames)
+
+
+def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) -> TaskConfig:
+    """``task`` tracking ``references`` (segment ``frames``, "A:B"); unchanged when neither is
+    given. A task whose command tracks no reference refuses them in one line."""
+    if not references and not frames:
+        return task
+    fields = {f.name for f in dataclasses.fields(task.commands)}
+    wanted = {"sources": tuple(references)} if references else {}
+    if frames:
+        wanted["frames"] = frames
+    missing = sorted(set(wanted) - fields)
+    if missing:
+        flag = "--reference" if "sources" in missing else "--reference-frames"
+        raise ValueError(
+            f"task '{task.name}' takes no {flag}: it tracks no reference motion of a user's; use "
+            "--task track"
+        )
+    task = dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
+    from rl.tasks.track.command import MotionCommandConfig
+    from rl.tasks.track.task import adapt_to_references
+
+    return adapt_to_references(task) if isinstance(task.commands, MotionCommandConfig) else task

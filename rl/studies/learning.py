@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
-from rl.alone_eval import curve_arrays
-from rl.run_folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE
-from rl.runner import load_run_config, resolve_task
-from rl.train_config import PPOConfig
+from rl.evaluation.alone import curve_arrays
+from rl.runs.folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE, load_run_config
+from rl.tasks.registry import resolve_task
+from rl.training.config import PPOConfig
 
 
 def read_evals(run_dir: Path) -> list[dict[str, Any]]:
@@ -109,7 +109,7 @@ def run_variant(cfg: Any) -> str:
 
 def _curriculum_variant(cur: Any) -> str:
     """``+paper``, or the skill trigger and the schedule where they differ from the default."""
-    from rl.curriculum import PAPER_RULES, CurriculumConfig
+    from rl.a2cf.config import PAPER_RULES, CurriculumConfig
 
     name, default = "", CurriculumConfig()
     if all(getattr(cur, key) == value for key, value in PAPER_RULES.items()):

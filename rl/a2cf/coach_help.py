@@ -2,7 +2,7 @@
 failing (the ZEST rule), with no force agent and no A2CF curriculum.
 
 Each step the motion policy acts and the env applies the artifact's coach wrench
-(:class:`rl.coaches.ArtifactCoach`: the per-frame wrench QP's feed-forward plus PD on the pelvis
+(:class:`rl.a2cf.coaches.ArtifactCoach`: the per-frame wrench QP's feed-forward plus PD on the pelvis
 pose, at each env's time along the reference) times a per-episode scale
 
     beta = clip(1 - (1 - failure_rate) / (1 - failure_floor), 0, max_scale)
@@ -15,40 +15,14 @@ mode, the policy alone in fresh envs (``--eval-interval``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import torch
 from tensordict import TensorDict
 
-from rl.agents.modes import MotionOnlyEnv
-from rl.config_bounds import check_range
+from rl.a2cf.config import CoachHelpConfig
+from rl.a2cf.modes import MotionOnlyEnv
 from rl.envs.components import EpisodeWindow
-
-
-@dataclass(frozen=True)
-class CoachHelpConfig:
-    """The coach's help (mode ``coach``); ``--coach-*`` are its flags."""
-
-    source: str = ""  # oracle artifact folder whose coach helps (mode coach); empty: none [-]
-    window: int = 256  # finished training episodes the failure rate is measured over [-]
-    failure_floor: float = 0.2  # failure rate at and below which the help is zero [-]
-    max_scale: float = 0.6  # largest scale of the coach's wrench [-]
-    max_force_n: float = 600.0  # the coach's wrench is clipped to this per axis [N]
-    max_torque_nm: float = 200.0  # ... and its moment to this per axis [N m]
-
-    def __post_init__(self) -> None:
-        """Bound every field where it is declared."""
-        check_range(self.window, "--coach-window", 1, 100_000)
-        check_range(self.failure_floor, "--coach-failure-floor", 0.0, 0.99)
-        check_range(self.max_scale, "--coach-max-scale", 0.0, 1.0)
-        check_range(self.max_force_n, "--coach-max-force-n", 0.0, 1e4)
-        check_range(self.max_torque_nm, "--coach-max-torque-nm", 0.0, 1e4)
-
-    def scale(self, failure_rate: float) -> float:
-        """beta for a failure rate in [0, 1] (the module docstring's rule)."""
-        beta = 1.0 - (1.0 - failure_rate) / (1.0 - self.failure_floor)
-        return min(max(beta, 0.0), self.max_scale)
 
 
 class CoachHelpEnv(MotionOnlyEnv):
@@ -59,7 +33,7 @@ class CoachHelpEnv(MotionOnlyEnv):
         """Wrap ``env`` (a :class:`rl.envs.vec_env.G1VecEnv` of a task with a time-indexed
         reference, whose artifact ``cfg.source`` is) and switch its assistance on, bounded by
         the coach's clip, without the less-assist reward or the random mask."""
-        from rl.coaches import ArtifactCoach
+        from rl.a2cf.coaches import ArtifactCoach
 
         super().__init__(env)
         self.coach_cfg = cfg
@@ -75,7 +49,7 @@ class CoachHelpEnv(MotionOnlyEnv):
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
         """Step with the policy's motion actions and the scaled coach wrench; episodes that end
         update the failure rate, and the envs they reset draw their scale from it."""
-        from rl.assist import raw_from_wrench
+        from rl.envs.assist import raw_from_wrench
 
         env = self.env
         wrench = self.coach(env) * self.beta.unsqueeze(-1)

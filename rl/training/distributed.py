@@ -5,7 +5,7 @@ rsl-rl's runner trains with ``torchrun`` when ``WORLD_SIZE`` > 1: it broadcasts 
 the start, averages the gradients of every update, and only rank 0 writes logs and checkpoints.
 It wants the learner on ``cuda:LOCAL_RANK`` with NCCL. Here the device ``cuda`` means that device
 (:func:`rank_device`), and the device ``cpu`` uses the gloo backend (:func:`init_cpu_process_group`,
-used by :class:`rl.runner.A2CFRunner`), so the same command runs on CPUs too. Outside torchrun
+used by :class:`rl.training.runner.A2CFRunner`), so the same command runs on CPUs too. Outside torchrun
 every function is the identity and nothing changes.
 """
 

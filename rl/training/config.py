@@ -5,17 +5,17 @@ from __future__ import annotations
 import dataclasses
 import re
 import typing
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
-from rl.agents.modes import get_mode
-from rl.alone_eval import AloneEvalConfig
-from rl.assist import DEFAULT_RANDOM_MASK_PROB
-from rl.coach_help import CoachHelpConfig
+from rl.a2cf.config import CoachHelpConfig, CurriculumConfig, WarmStartConfig, get_mode
 from rl.config_bounds import check_range
-from rl.curriculum import CurriculumConfig
+from rl.envs.assist import DEFAULT_RANDOM_MASK_PROB
 from rl.envs.config import EnvConfig
-from rl.warmstart import WarmStartConfig
+from rl.evaluation.config import AloneEvalConfig
+
+if TYPE_CHECKING:
+    from rl.a2cf.config import ModeSpec
 
 MAX_ROLLOUT_TRANSITIONS = 2**24
 """Most transitions (envs x steps per env) one iteration may collect: a typical GPU run collects
@@ -97,7 +97,7 @@ class TrainConfig:
     """One training run; nested configs become ``--env-*``, ``--ppo-*``, ``--model-*`` and
     ``--curriculum-*`` flags, task fields ``--task-*`` (see :mod:`a2cf_mb.commands.train`)."""
 
-    task: str = "stand"  # task name from rl.registry.TASKS (see list-tasks) [-]
+    task: str = "stand"  # task name from rl.tasks.registry.TASKS (see list-tasks) [-]
     mode: str = "a2cf"  # baseline | a2cf | no-pi | no-id | no-rm [-]
     iterations: int = 100  # total learning iterations of the run (a resume continues up to it) [-]
     num_steps_per_env: int = 24  # control steps per env per iteration (rollout length) [-]
@@ -228,3 +228,72 @@ def _build(kind: type, values: dict[str, Any], where: str = "train") -> Any:
         return kind(**kwargs)
     except TypeError as err:  # a value of the wrong type, compared in a check
         raise ValueError(f"{where}: a field has a value of the wrong type ({err})") from err
+
+
+def with_task_defaults(cfg: TrainConfig, task: Any) -> TrainConfig:
+    """``cfg`` with PPO's discount and update epochs set: the run's own (``--ppo-gamma``,
+    ``--ppo-num-learning-epochs``, ``--model-vae-learning-epochs``), else those of ``task`` (the run's resolved task)."""
+    ppo, model = cfg.ppo, cfg.model
+    if None in (ppo.gamma, ppo.num_learning_epochs, model.vae_learning_epochs):
+        ppo = replace(
+            ppo,
+            gamma=task.discount if ppo.gamma is None else ppo.gamma,
+            num_learning_epochs=(
+                task.learning_epochs if ppo.num_learning_epochs is None else ppo.num_learning_epochs
+            ),
+        )
+        vae = model.vae_learning_epochs
+        model = replace(model, vae_learning_epochs=task.vae_learning_epochs if vae is None else vae)
+    return replace(cfg, ppo=ppo, model=model)
+
+
+def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
+    """The rsl-rl runner configuration (class names, obs_groups, PPO and model kwargs)."""
+    actor_groups = ["policy", "history"] + (
+        ["privileged"] if mode.assist and mode.assist_privileged else []
+    )
+    if None in (cfg.ppo.gamma, cfg.ppo.num_learning_epochs, cfg.model.vae_learning_epochs):
+        raise ValueError(
+            "rsl_rl_config needs the task's defaults set: with_task_defaults(cfg, task)"
+        )
+    ppo = asdict(cfg.ppo)
+    init_noise_std = ppo.pop("init_noise_std")
+    assist_init_std = ppo.pop("assist_init_noise_std")
+    kl_actions = ppo.pop("kl_actions")
+    return {
+        "num_steps_per_env": cfg.num_steps_per_env,
+        # rsl-rl calls save() every iteration: last.pt is always the latest state; the runner
+        # keeps model_<k>.pt every cfg.save_interval iterations.
+        "save_interval": 1,
+        "obs_groups": {"actor": actor_groups, "critic": ["critic"]},
+        "algorithm": {
+            "class_name": "rl.agents.ppo:A2CFPPO",
+            **ppo,
+            "schedule": "adaptive",
+            "vae_learning_rate": cfg.model.vae_learning_rate,
+            "vae_kl_weight": cfg.model.vae_kl_weight,
+            "vae_velocity_weight": cfg.model.vae_velocity_weight,
+            "vae_learning_epochs": cfg.model.vae_learning_epochs,
+        },
+        "actor": {
+            "class_name": "rl.agents.models:A2CFActor",
+            "latent_dim": cfg.model.latent_dim,
+            "encoder_hidden_dims": list(cfg.model.encoder_hidden_dims),
+            "motion_hidden_dims": list(cfg.model.motion_hidden_dims),
+            "assist_hidden_dims": list(cfg.model.assist_hidden_dims),
+            "activation": cfg.model.activation,
+            "obs_normalization": True,
+            "assist_privileged": mode.assist_privileged,
+            "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": init_noise_std},
+            "assist_init_std": assist_init_std if mode.assist else None,
+            "kl_motion_only": kl_actions == "motion",
+        },
+        "critic": {
+            "class_name": "MLPModel",
+            "hidden_dims": list(cfg.model.critic_hidden_dims),
+            "activation": cfg.model.activation,
+            "obs_normalization": True,
+        },
+        "logger": "tensorboard",
+        "check_for_nan": True,
+    }

@@ -11,19 +11,18 @@ with exact resume.
     curriculum.jsonl     one line per iteration: bounds, applied wrench, switches
     metrics.json         per-iteration figures and the run summary
     policy.onnx          exported motion policy (+ policy.json describing its inputs/outputs)
-    run.lock             while a process trains in it (one process at a time, rl.run_folder)
+    run.lock             while a process trains in it (one process at a time, rl.runs.folder)
 
 The file names, the lock and where a run starts (new folder, resume, checkpoint rescue) are
-:mod:`rl.run_folder`'s; the warm start before PPO is :mod:`rl.warmstart`'s (their names used
-elsewhere are re-exported here).
+:mod:`rl.runs.folder`'s; the warm start before PPO is :mod:`rl.a2cf.warmstart`'s.
 
-The loop is rsl-rl's :meth:`~rsl_rl.runners.OnPolicyRunner.learn`, untouched: Algorithm 1 runs in
-the env as an iteration-rate event (:class:`rl.curriculum.CurriculumEvent`), so multi-process
-training (``torchrun``) works as rsl-rl's does, with the curriculum statistics summed over
-processes. :class:`A2CFRunner` only adds what a run folder needs: checkpoints holding the env and
-curriculum state, the curriculum log, per-iteration metrics and the export.
+The loop is rsl-rl's :meth:`~rsl_rl.runners.OnPolicyRunner.learn`, unforked. :class:`A2CFRunner`
+wraps PPO's update with the iteration's end (:meth:`A2CFRunner.end_iteration`): the evaluation of
+the policy alone when due, then Algorithm 1 (:class:`rl.a2cf.algorithm1.Algorithm1`, on every
+process of a ``torchrun`` job, its statistics summed over them); rsl-rl then logs and calls
+:meth:`A2CFRunner.save`, which only saves.
 
-Under ``torchrun`` (:mod:`rl.distributed`) every process trains into the same run folder, which
+Under ``torchrun`` (:mod:`rl.training.distributed`) every process trains into the same run folder, which
 rank 0 alone writes; each rank seeds its envs with ``seed + rank`` and learns on ``cuda:LOCAL_RANK``
 (``--device cuda``) or on the CPU with the gloo backend (``--device cpu``).
 """
@@ -31,14 +30,13 @@ rank 0 alone writes; each rank seeds its envs with ``seed + rank`` and learns on
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import io
 import json
 import random
 import re
 import sys
 from collections import deque
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,10 +52,38 @@ from optimal_control.files import (
     atomic_write_text,
     git_revision,
 )
-from rl.agents.modes import ModeSpec, MotionOnlyEnv, get_mode
-from rl.alone_eval import AloneEvaluation
-from rl.curriculum import AssistCurriculum, CurriculumEvent, identical_axis_bounds
-from rl.distributed import (
+from rl.a2cf.algorithm1 import (
+    Algorithm1,
+    RecordingEnv,
+    apply_curriculum,
+    curriculum_log,
+    use_alone_envs,
+)
+from rl.a2cf.config import ModeSpec, get_mode
+from rl.a2cf.curriculum import AssistCurriculum, identical_axis_bounds
+from rl.a2cf.modes import MotionOnlyEnv
+from rl.a2cf.warmstart import require_joint_reference, warm_start, warmstart_eta0
+from rl.envs.task_schema import TaskConfig
+from rl.envs.vec_env import G1VecEnv
+from rl.evaluation.alone import AloneEvaluation
+from rl.runs.folder import (
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    CURRICULUM_LOG,
+    GIT_FILE,
+    LAST_CHECKPOINT,
+    METRICS_FILE,
+    POLICY_FILE,
+    WARMSTART_FILE,
+    RunFolderLock,
+    load_checkpoint,
+    new_run_dir,
+    remove_unstarted_run,
+    start_point,
+)
+from rl.tasks.registry import resolve_task
+from rl.training.config import TrainConfig, rsl_rl_config, with_task_defaults
+from rl.training.distributed import (
     ProcessRank,
     check_learner_device,
     close_process_group,
@@ -67,33 +93,11 @@ from rl.distributed import (
     rank_env_config,
     rank_seed,
 )
-from rl.envs.vec_env import G1VecEnv
-from rl.registry import get_task
-from rl.run_folder import (  # noqa: F401 - names re-exported for readers of rl.runner
-    CHECKPOINT_DIR,
-    CONFIG_FILE,
-    CURRICULUM_LOG,
-    EVENTS_GLOB,
-    GIT_FILE,
-    LAST_CHECKPOINT,
-    METRICS_FILE,
-    POLICY_FILE,
-    WARMSTART_FILE,
-    RunFolderLock,
-    load_checkpoint,
-    load_run_config,
-    new_run_dir,
-    remove_unstarted_run,
-    resumable_checkpoint,
-    start_point,
-)
-from rl.tasks.config import TaskConfig
-from rl.train_config import TrainConfig
-from rl.warmstart import require_joint_reference, warm_start, warmstart_eta0
 
-CHECKPOINT_FORMAT = 3
-"""Version of the checkpoint layout (2: env state and curriculum event inside; 3: the env state
-part by part, ``rl.envs.vec_env.PARTS``)."""
+CHECKPOINT_FORMAT = 4
+"""Version of the checkpoint layout (3: the env state part by part, ``rl.envs.vec_env.PARTS``, the
+curriculum inside the env's assist part; 4: Algorithm 1's state once, under ``a2cf``; format 3
+is migrated on load, :func:`migrate_checkpoint`)."""
 
 
 @dataclass
@@ -104,55 +108,6 @@ class TrainResult:
     iterations_done: int  # learning iterations completed in the run so far
     metrics: dict[str, Any]  # the content of metrics.json
     main_process: bool = True  # this process wrote the run folder (False: a torchrun rank > 0)
-
-
-def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
-    """The rsl-rl runner configuration (class names, obs_groups, PPO and model kwargs)."""
-    actor_groups = ["policy", "history"] + (
-        ["privileged"] if mode.assist and mode.assist_privileged else []
-    )
-    cfg = with_task_defaults(cfg)
-    ppo = asdict(cfg.ppo)
-    init_noise_std = ppo.pop("init_noise_std")
-    assist_init_std = ppo.pop("assist_init_noise_std")
-    kl_actions = ppo.pop("kl_actions")
-    return {
-        "num_steps_per_env": cfg.num_steps_per_env,
-        # rsl-rl calls save() every iteration: last.pt is always the latest state; the runner
-        # keeps model_<k>.pt every cfg.save_interval iterations.
-        "save_interval": 1,
-        "obs_groups": {"actor": actor_groups, "critic": ["critic"]},
-        "algorithm": {
-            "class_name": "rl.agents.ppo:A2CFPPO",
-            **ppo,
-            "schedule": "adaptive",
-            "vae_learning_rate": cfg.model.vae_learning_rate,
-            "vae_kl_weight": cfg.model.vae_kl_weight,
-            "vae_velocity_weight": cfg.model.vae_velocity_weight,
-            "vae_learning_epochs": cfg.model.vae_learning_epochs,
-        },
-        "actor": {
-            "class_name": "rl.agents.models:A2CFActor",
-            "latent_dim": cfg.model.latent_dim,
-            "encoder_hidden_dims": list(cfg.model.encoder_hidden_dims),
-            "motion_hidden_dims": list(cfg.model.motion_hidden_dims),
-            "assist_hidden_dims": list(cfg.model.assist_hidden_dims),
-            "activation": cfg.model.activation,
-            "obs_normalization": True,
-            "assist_privileged": mode.assist_privileged,
-            "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": init_noise_std},
-            "assist_init_std": assist_init_std if mode.assist else None,
-            "kl_motion_only": kl_actions == "motion",
-        },
-        "critic": {
-            "class_name": "MLPModel",
-            "hidden_dims": list(cfg.model.critic_hidden_dims),
-            "activation": cfg.model.activation,
-            "obs_normalization": True,
-        },
-        "logger": "tensorboard",
-        "check_for_nan": True,
-    }
 
 
 def _mean_of(ep_extras: list[dict], key: str) -> float | None:
@@ -255,14 +210,41 @@ class A2CFRunner(OnPolicyRunner):
             gpu_global_rank=self.gpu_global_rank,
             device=self.device,
         )
-        event = env.curriculum_event
-        self.logger.curriculum = event.curriculum if event is not None else None
+        self.algorithm1 = env.algorithm if isinstance(env, RecordingEnv) else None
+        self.logger.curriculum = self.algorithm1.curriculum if self.algorithm1 else None
         self.run_dir = run_dir
         self.mode = mode
         self.total_iterations = total_iterations
         self.keep_interval = keep_interval
         self._saved_completed = -1
+        self._done = 0  # iterations whose update is done
         self.alone_eval: AloneEvaluation | None = None  # evaluations of the policy alone
+        update = self.alg.update
+
+        def update_then_end_iteration() -> dict:
+            losses = update()
+            self._done += 1
+            self.end_iteration(self._done)
+            return losses
+
+        self.alg.update = update_then_end_iteration  # rsl-rl's loop stays rsl-rl's
+
+    def end_iteration(self, completed: int) -> None:
+        """The end of iteration ``completed`` (1-based), after PPO's update: the evaluation of
+        the policy alone when due (the main process), then Algorithm 1 and its new bounds
+        applied to the env."""
+        alone = self.alone_eval
+        if (
+            self.is_main_process
+            and alone is not None
+            and alone.due(completed, self.total_iterations)
+        ):
+            self._evaluate_alone(completed)
+        if self.algorithm1 is None:
+            return
+        row = self.env.end_iteration()  # the RecordingEnv's: Algorithm 1, applied to the env
+        if self.logger.writer is not None:  # TensorBoard Curriculum/* with this iteration
+            self.logger.ep_extras.append(curriculum_log(row, self.env.task.phase_names))
 
     def _configure_multi_gpu(self) -> None:
         """rsl-rl's multi-process setup (NCCL on ``cuda:LOCAL_RANK``); on the CPU the same with
@@ -308,8 +290,6 @@ class A2CFRunner(OnPolicyRunner):
             return  # rsl-rl's closing save repeats the last iteration's
         self._saved_completed = completed
         alone = self.alone_eval
-        if alone is not None and alone.due(completed, self.total_iterations):
-            self._evaluate_alone(completed)
         state = self.alg.save()
         state.update(
             {
@@ -322,9 +302,8 @@ class A2CFRunner(OnPolicyRunner):
                 "infos": {"mode": self.mode.name, **(infos or {})},
             }
         )
-        event = self.env.curriculum_event
-        if event is not None:
-            state["curriculum"] = event.curriculum.state_dict()
+        if self.algorithm1 is not None:
+            state["a2cf"] = self.algorithm1.state_dict()
         if alone is not None:
             state["alone_eval"] = list(alone.rows)
         buffer = io.BytesIO()
@@ -340,14 +319,19 @@ class A2CFRunner(OnPolicyRunner):
             alone.write()
         self.logger.save_model(str(folder / LAST_CHECKPOINT), completed)
 
+    def _env_steps_after_iteration(self) -> int:
+        """Env steps of the run once this iteration is counted (rsl-rl counts at its log call,
+        which comes after the iteration's end)."""
+        size = self.cfg["num_steps_per_env"] * self.env.num_envs * self.gpu_world_size
+        return int(self.logger.tot_timesteps) + size
+
     def _evaluate_alone(self, completed: int) -> None:
         """Evaluate the motion policy alone now; TensorBoard ``Eval/*`` and one printed line."""
         row = self.alone_eval(
-            self.alg.get_policy().motion_policy(), completed, int(self.logger.tot_timesteps)
+            self.alg.get_policy().motion_policy(), completed, self._env_steps_after_iteration()
         )
-        event = getattr(self.env, "curriculum_event", None)
-        if event is not None:  # the skill measure "evaluation" of Algorithm 1
-            event.curriculum.note_evaluation(row["target_progress"])
+        if self.algorithm1 is not None:  # the skill measure "evaluation" of Algorithm 1
+            self.algorithm1.curriculum.note_evaluation(row["target_progress"])
         if self.logger.writer is not None:
             for key, value in AloneEvaluation.scalars(row).items():
                 self.logger.writer.add_scalar(key, value, completed)
@@ -367,7 +351,7 @@ class A2CFRunner(OnPolicyRunner):
     def load_checkpoint(self, path: Path) -> None:
         """Restore weights, optimisers, iteration counter, env and curriculum state, logger,
         RNG; the run then continues exactly where the checkpoint was written."""
-        state = load_checkpoint(path, map_location=self.device)
+        state = migrate_checkpoint(load_checkpoint(path, map_location=self.device))
         if state.get("format") != CHECKPOINT_FORMAT:
             raise ValueError(
                 f"{path} is a checkpoint of an older layout (format {state.get('format')}, this "
@@ -375,8 +359,13 @@ class A2CFRunner(OnPolicyRunner):
             )
         self.alg.load(state, None, strict=True)
         self.current_learning_iteration = int(state["completed_iterations"])
-        self._saved_completed = self.current_learning_iteration
+        self._saved_completed = self._done = self.current_learning_iteration
         self.env.load_state_dict(state["env"])
+        if self.algorithm1 is not None:
+            if "a2cf" not in state:
+                raise ValueError(f"{path} holds no curriculum, this run's mode needs one")
+            self.algorithm1.load_state_dict(state["a2cf"])
+            apply_curriculum(self.env, self.algorithm1.curriculum)
         self.logger.load_state_dict(state["logger"])
         torch.set_rng_state(state["torch_rng_state"])
         if self.alone_eval is not None:
@@ -394,10 +383,9 @@ class A2CFRunner(OnPolicyRunner):
     def _write_curriculum_log(self) -> None:
         """curriculum.jsonl = the checkpointed update history (lines of iterations after the
         checkpoint, from a kill between log and save, disappear)."""
-        event = self.env.curriculum_event
-        if event is None:
+        if self.algorithm1 is None:
             return
-        text = "".join(json.dumps(row) + "\n" for row in event.history)
+        text = "".join(json.dumps(row) + "\n" for row in self.algorithm1.history)
         atomic_write_text(self.run_dir / CURRICULUM_LOG, text)
 
 
@@ -406,6 +394,29 @@ def seed_everything(seed: int) -> None:
     random.seed(seed)
     np.random.seed(seed)  # noqa: NPY002 - legacy global RNG, seeded for any code that still uses it
     torch.manual_seed(seed)
+
+
+def migrate_checkpoint(state: dict[str, Any]) -> dict[str, Any]:
+    """A checkpoint of format 3 in format 4: the curriculum event the env's assist part held
+    becomes Algorithm 1's state (saved between iterations, so no rollout is half-counted)."""
+    if state.get("format") != 3:
+        return state
+    event = state["env"]["assist"].pop("curriculum_event", None)
+    state.pop("curriculum", None)  # the second copy, never read
+    if event is not None:
+        if event["step_in_iteration"] != 0:
+            raise ValueError("checkpoint of format 3 saved inside a rollout: start a new run")
+        state["a2cf"] = {
+            "curriculum": event["curriculum"],
+            "iteration": event["iteration"],
+            "steps": 0,
+            "skill_sum": event["skill_sum"],
+            "alone_sum": event.get("alone_sum", 0.0),
+            "stats": event["stats"],
+            "history": event["history"],
+        }
+    state["format"] = 4
+    return state
 
 
 def initial_bounds(task: TaskConfig, mode: ModeSpec, eta0: torch.Tensor | None) -> torch.Tensor:
@@ -420,57 +431,11 @@ def initial_bounds(task: TaskConfig, mode: ModeSpec, eta0: torch.Tensor | None) 
     return identical_axis_bounds(bounds) if mode.identical_initial_bounds else bounds
 
 
-def resolve_task(cfg: TrainConfig) -> TaskConfig:
-    """The run's task: the registered config with the run's overrides applied."""
-    task = get_task(cfg.task).with_overrides(cfg.task_overrides)
-    return with_references(task, cfg.reference, cfg.reference_frames)
-
-
-def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) -> TaskConfig:
-    """``task`` tracking ``references`` (segment ``frames``, "A:B"); unchanged when neither is
-    given. A task whose command tracks no reference refuses them in one line."""
-    if not references and not frames:
-        return task
-    fields = {f.name for f in dataclasses.fields(task.commands)}
-    wanted = {"sources": tuple(references)} if references else {}
-    if frames:
-        wanted["frames"] = frames
-    missing = sorted(set(wanted) - fields)
-    if missing:
-        flag = "--reference" if "sources" in missing else "--reference-frames"
-        raise ValueError(
-            f"task '{task.name}' takes no {flag}: it tracks no reference motion of a user's; use "
-            "--task track"
-        )
-    task = dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
-    from rl.tasks.track.command import MotionCommandConfig
-    from rl.tasks.track.task import adapt_to_references
-
-    return adapt_to_references(task) if isinstance(task.commands, MotionCommandConfig) else task
-
-
-def with_task_defaults(cfg: TrainConfig) -> TrainConfig:
-    """``cfg`` with PPO's discount and update epochs set: the run's own (``--ppo-gamma``,
-    ``--ppo-num-learning-epochs``, ``--model-vae-learning-epochs``), else its task's."""
-    ppo, model = cfg.ppo, cfg.model
-    if None in (ppo.gamma, ppo.num_learning_epochs, model.vae_learning_epochs):
-        task = resolve_task(cfg)
-        ppo = replace(
-            ppo,
-            gamma=task.discount if ppo.gamma is None else ppo.gamma,
-            num_learning_epochs=(
-                task.learning_epochs if ppo.num_learning_epochs is None else ppo.num_learning_epochs
-            ),
-        )
-        vae = model.vae_learning_epochs
-        model = replace(model, vae_learning_epochs=task.vae_learning_epochs if vae is None else vae)
-    return replace(cfg, ppo=ppo, model=model)
-
-
 def build_training(
     cfg: TrainConfig, run_dir: Path, eta0: torch.Tensor | None = None
 ) -> tuple[G1VecEnv, A2CFRunner, dict[str, Any]]:
-    """The env (with the curriculum event attached in assist modes) and the runner of a run."""
+    """The env and the runner of a run (in the assist modes the learner's env view records every
+    step for Algorithm 1)."""
     mode = get_mode(cfg.mode)
     task = resolve_task(cfg)
     if eta0 is None:
@@ -483,18 +448,23 @@ def build_training(
             env.close()
             raise
     env.set_random_mask_prob(cfg.random_mask_prob if mode.random_mask else 0.0)
+    learner_env: VecEnv = MotionOnlyEnv(env)
     if mode.assist:
         curriculum = AssistCurriculum(initial_bounds(task, mode, eta0), cfg.curriculum)
-        env.attach_curriculum(CurriculumEvent(curriculum, cfg.num_steps_per_env))
+        if curriculum.num_phases != task.num_phases:
+            raise ValueError(
+                f"curriculum has {curriculum.num_phases} phases, task '{task.name}' has "
+                f"{task.num_phases}"
+            )
+        learner_env = RecordingEnv(env, Algorithm1(curriculum))
     else:
         env.set_assist_enabled(False)
         env.set_less_assist_reward(False)
-    learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
     if mode.coach_help:
-        from rl.coach_help import CoachHelpEnv
+        from rl.a2cf.coach_help import CoachHelpEnv
 
         learner_env = CoachHelpEnv(env, cfg.coach)
-    rsl_cfg = rsl_rl_config(cfg, mode)
+    rsl_cfg = rsl_rl_config(with_task_defaults(cfg, task), mode)
     device = rank_device(cfg.device)
     runner = A2CFRunner(
         learner_env, rsl_cfg, run_dir, mode, cfg.iterations, cfg.save_interval, device=device
@@ -514,12 +484,12 @@ def train(cfg: TrainConfig, eta0: torch.Tensor | None = None, verbose: bool = Tr
             an oracle artifact's bounds come in).
         verbose: print rsl-rl's per-iteration progress block.
 
-    Under ``torchrun`` every process calls this with the same config (see :mod:`rl.distributed`):
+    Under ``torchrun`` every process calls this with the same config (see :mod:`rl.training.distributed`):
     a new run then needs ``cfg.run_name``, since the default name holds the time each process
     reads, and the result of a rank other than 0 has the metrics but wrote no file.
 
     Raises:
-        rl.run_folder.RunFolderBusyError: another process is training in the run folder.
+        rl.runs.folder.RunFolderBusyError: another process is training in the run folder.
     """
     check_distributed(cfg, process_rank())
     run_dir = Path(cfg.resume) if cfg.resume else new_run_dir(cfg)
@@ -581,7 +551,8 @@ def _train_locked(
     if start.cfg.env.backend == "warp":
         check_device_available(start.cfg.env.device, "--env-device")
     # The run folder's config holds the discount and epochs in use, so a resume keeps them.
-    cfg, checkpoint = with_task_defaults(start.cfg), start.checkpoint
+    cfg = with_task_defaults(start.cfg, resolve_task(start.cfg))
+    checkpoint = start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
         eta0 = torch.tensor(start.saved_eta0)
     seed_everything(rank_seed(cfg.seed))
@@ -599,10 +570,10 @@ def _train_locked(
         runner.load_checkpoint(checkpoint)
     new_folder = main and not (run_dir / CONFIG_FILE).is_file()
     if new_folder:
-        _write_run_config(run_dir, cfg, env, rsl_cfg)
+        _write_run_config(run_dir, cfg, env, rsl_cfg, runner.algorithm1)
     try:
         if (cfg.warmstart or cfg.warmstart_motion) and checkpoint is None:
-            report = warm_start(cfg, env, runner)
+            report = _warm_start(cfg, env, runner)
             if main:
                 atomic_write_json(run_dir / WARMSTART_FILE, report)
         with quiet:
@@ -629,11 +600,27 @@ def _train_locked(
     )
 
 
+def _warm_start(cfg: TrainConfig, env: G1VecEnv, runner: A2CFRunner) -> dict[str, Any]:
+    """The warm start before PPO (:func:`rl.a2cf.warmstart.warm_start`) on the env without its
+    alone envs and unrecorded (its steps are no rollout of Algorithm 1); the curriculum's state
+    is then handed to the env again."""
+    learner = runner.env.env if isinstance(runner.env, RecordingEnv) else runner.env
+    use_alone_envs(env, None)
+    report = warm_start(cfg, env, runner.alg.actor, learner)
+    if runner.algorithm1 is not None:
+        use_alone_envs(env, runner.algorithm1.curriculum)
+        apply_curriculum(env, runner.algorithm1.curriculum)
+    return report
+
+
 def _write_run_config(
-    run_dir: Path, cfg: TrainConfig, env: G1VecEnv, rsl_cfg: dict[str, Any]
+    run_dir: Path,
+    cfg: TrainConfig,
+    env: G1VecEnv,
+    rsl_cfg: dict[str, Any],
+    algorithm1: Algorithm1 | None,
 ) -> None:
     """config.json (train config, resolved task, env and rsl-rl configs, eta0) and git.json."""
-    event = env.curriculum_event
     atomic_write_json(
         run_dir / CONFIG_FILE,
         {
@@ -641,7 +628,7 @@ def _write_run_config(
             "task": env.task.to_json_dict(),
             "env": asdict(env.cfg),
             "rsl_rl": rsl_cfg,
-            "eta0": event.curriculum.eta0.tolist() if event is not None else None,
+            "eta0": algorithm1.curriculum.eta0.tolist() if algorithm1 is not None else None,
         },
     )
     atomic_write_json(run_dir / GIT_FILE, git_revision(Path(__file__).resolve().parent))
@@ -658,7 +645,7 @@ def _finish(runner: A2CFRunner, cfg: TrainConfig, env: G1VecEnv, run_dir: Path) 
     """The ONNX export (when asked) and metrics.json; returns the metrics."""
     metrics = summarise(runner, cfg)
     if cfg.export_onnx:
-        from rl.export import export_motion_policy
+        from rl.agents.export import export_motion_policy
 
         export = export_motion_policy(runner.alg.get_policy(), run_dir / POLICY_FILE, env=env)
         metrics["onnx"] = export
@@ -669,8 +656,7 @@ def _finish(runner: A2CFRunner, cfg: TrainConfig, env: G1VecEnv, run_dir: Path) 
 def summarise(runner: A2CFRunner, cfg: TrainConfig) -> dict[str, Any]:
     """Run summary (first/last figures, speeds, curriculum state) plus the per-iteration rows."""
     rows = runner.history
-    event = runner.env.curriculum_event
-    cur = event.curriculum if event is not None else None
+    cur = runner.algorithm1.curriculum if runner.algorithm1 is not None else None
     summary: dict[str, Any] = {
         "task": cfg.task,
         "mode": cfg.mode,

@@ -7,7 +7,7 @@ import math
 import torch
 
 from rl.envs.state import EnvState
-from rl.rewards import _contacts
+from rl.tasks.rewards import _contacts
 
 
 def base_too_low(s: EnvState, min_height_m: float) -> torch.Tensor:

@@ -5,11 +5,11 @@ of each kind of file it holds.
 Every command that reads a run folder (``train --resume``, ``eval``, ``eval-curve``, ``compare``,
 sim2sim) goes through :func:`load_checkpoint`, :func:`read_config_file` /
 :func:`load_run_config`, :func:`read_run_json` and :func:`read_run_jsonl` (the ONNX file:
-:class:`rl.export.OnnxMotionPolicy`). A damaged file raises :class:`DamagedRunFileError`, whose
+:class:`rl.agents.export.OnnxMotionPolicy`). A damaged file raises :class:`DamagedRunFileError`, whose
 message names the file and what to do (``docs/faults.md``).
 
-The names are defined here once; :mod:`rl.runner` (which writes a run folder, and re-exports them),
-:mod:`rl.compare`, :mod:`rl.sim2sim`, :mod:`a2cf_mb.demo` and the benchmarks import them. This
+The names are defined here once; :mod:`rl.training.runner` (which writes a run folder, and re-exports them),
+:mod:`rl.studies.compare`, :mod:`rl.evaluation.sim2sim`, :mod:`a2cf_mb.demo` and the benchmarks import them. This
 module imports nothing heavy, so readers of a run folder need not load torch or the env (the
 checkpoint choice imports torch when it runs).
 
@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from optimal_control.files import process_alive, remove_stale_temp_files
 
 if TYPE_CHECKING:
-    from rl.train_config import TrainConfig
+    from rl.training.config import TrainConfig
 
 CONFIG_FILE = "config.json"
 """Resolved TrainConfig, the resolved task, env config, rsl-rl config and eta0."""
@@ -59,7 +59,7 @@ WARMSTART_FILE = "warmstart.json"
 POLICY_FILE = "policy.onnx"
 """The exported motion policy."""
 POLICY_BUNDLE_FILE = str(PurePath(POLICY_FILE).with_suffix(".json"))
-"""The deployment bundle :func:`rl.export.export_motion_policy` writes beside the ONNX file."""
+"""The deployment bundle :func:`rl.agents.export.export_motion_policy` writes beside the ONNX file."""
 EVAL_FILE = "eval.json"
 """Result of ``a2cf-mb eval``."""
 EVENTS_GLOB = "events.out.tfevents*"
@@ -412,7 +412,7 @@ def read_config_file(run_dir: str | Path, sections: tuple[str, ...] = ("train",)
 def load_run_config(run_dir: str | Path) -> TrainConfig:
     """The TrainConfig saved in a run folder (clear errors for a missing or broken file: the file,
     and the section or fields that are wrong)."""
-    from rl.train_config import TrainConfig
+    from rl.training.config import TrainConfig
 
     path = Path(run_dir) / CONFIG_FILE
     data = read_config_file(run_dir)["train"]

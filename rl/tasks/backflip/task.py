@@ -1,6 +1,6 @@
 """``backflip``: a standing backflip of the G1 through the five-phase FSM of the paper.
 
-Stand -> Crouch -> Jump -> Air -> Land (:mod:`rl.tasks.backflip_terms`), started by the command
+Stand -> Crouch -> Jump -> Air -> Land (:mod:`rl.tasks.backflip.terms`), started by the command
 ``c_t = 1_start`` after a random standing delay. Rewards are the paper's backflip table, each
 term masked to its phases; the desired joint pose per phase comes from a backflip oracle artifact
 (``backflip_task(artifact_path)``, or the run override ``task_overrides={"term_params":
@@ -23,11 +23,11 @@ from typing import Any
 import torch
 
 from optimal_control.files import atomic_savefig
-from rl import rewards, terminations
-from rl.curriculum import paper_bound_rows
-from rl.tasks import backflip_terms as bt
-from rl.tasks.config import InitialStateConfig, PushConfig, RandomizationConfig, TaskConfig
-from rl.tasks.stand import STAND_OBSERVATIONS
+from rl.envs.assist import paper_bound_rows
+from rl.envs.task_schema import InitialStateConfig, PushConfig, RandomizationConfig, TaskConfig
+from rl.tasks import rewards, terminations
+from rl.tasks.backflip import terms as bt
+from rl.tasks.stand.task import STAND_OBSERVATIONS
 from rl.tasks.terms import RewardTerm, TerminationTerm
 
 GROUND = (bt.STAND, bt.CROUCH, bt.LAND)

@@ -139,17 +139,3 @@ def _contacts(s: EnvState, bodies: tuple[str, ...]) -> torch.Tensor:
 def termination(s: EnvState) -> torch.Tensor:
     """1 for envs that failed this step (not time-outs), else 0; weight it negatively."""
     return s.terminated.to(torch.float32)
-
-
-def less_assist(applied_wrench: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
-    """A2CF less-assist reward exp(-2 |F| / |eta|) of the applied wrench (N, 6) and its bound (N, 6).
-
-    1 without help; an env whose bound is zero (no help possible) gets 1. Added by the env (not a
-    task term) while the curriculum has it switched on.
-    """
-    force_norm = applied_wrench.norm(dim=-1)
-    bound_norm = bound.norm(dim=-1)
-    ratio = torch.where(
-        bound_norm > 0, force_norm / bound_norm.clamp_min(1e-9), torch.zeros_like(force_norm)
-    )
-    return torch.exp(-2.0 * ratio)

@@ -3,7 +3,7 @@ with every step's joint pose recorded: how a learned policy (assistance off) and
 motion (its reference held by the joint PD, with or without its coach's pelvis wrench) track the
 same reference on the same randomised robots.
 
-The training evaluations (:mod:`rl.alone_eval`) start each episode on a random frame and keep
+The training evaluations (:mod:`rl.evaluation.alone`) start each episode on a random frame and keep
 scores only; here every episode starts on the clip's first frame and lasts the whole clip, so the
 joint traces of different controllers line up in time and can be drawn over the reference. The
 scores come from the task's own evaluator (for the dance, :class:`rl.tasks.dance.DanceEvaluator`),
@@ -25,9 +25,9 @@ import torch
 from tensordict import TensorDict
 
 from rl.envs.config import EnvConfig
+from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.run_folder import CHECKPOINT_DIR, POLICY_FILE
-from rl.tasks.config import TaskConfig
+from rl.runs.folder import CHECKPOINT_DIR, POLICY_FILE
 from robots import g1
 
 MotionFn = Callable[[G1VecEnv, TensorDict], torch.Tensor]
@@ -140,7 +140,7 @@ def learned_motion(run_dir: str | Path, env: G1VecEnv) -> tuple[MotionFn, str]:
     run_dir = Path(run_dir)
     onnx = run_dir / POLICY_FILE
     if onnx.is_file():
-        from rl.export import OnnxMotionPolicy
+        from rl.agents.export import OnnxMotionPolicy
 
         policy = OnnxMotionPolicy(onnx)
 
@@ -158,8 +158,8 @@ def learned_motion(run_dir: str | Path, env: G1VecEnv) -> tuple[MotionFn, str]:
             f"{run_dir} has no {POLICY_FILE} and no kept checkpoint ({CHECKPOINT_DIR}/model_<k>"
             ".pt) yet: let the run reach its first save_interval, or drop it from the comparison"
         )
-    from rl.evaluate import checkpoint_motion_policy
-    from rl.runner import load_run_config
+    from rl.evaluation.policy import checkpoint_motion_policy
+    from rl.runs.folder import load_run_config
 
     iteration, path = kept[-1]
     actor = checkpoint_motion_policy(load_run_config(run_dir), env, path)
@@ -169,7 +169,7 @@ def learned_motion(run_dir: str | Path, env: G1VecEnv) -> tuple[MotionFn, str]:
 def coach_assist(artifact: str | Path) -> AssistFn:
     """The oracle artifact's coach, always on (no tolerance band): its per-frame wrench plus PD on
     the pelvis pose, at each robot's time along the reference, clipped to the env's bound."""
-    from rl.coaches import ArtifactCoach, ArtifactCoachConfig
+    from rl.a2cf.coaches import ArtifactCoach, ArtifactCoachConfig
 
     return ArtifactCoach(str(artifact), ArtifactCoachConfig(band_position_m=0.0,
                                                             band_orientation_rad=0.0))  # fmt: skip

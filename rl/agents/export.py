@@ -23,7 +23,7 @@ import torch
 
 from optimal_control.files import atomic_write_json
 from rl.agents.models import A2CFActor, MotionPolicy
-from rl.run_folder import REEXPORT_ADVICE, DamagedRunFileError, short_reason
+from rl.runs.folder import REEXPORT_ADVICE, DamagedRunFileError, short_reason
 
 ONNX_OPSET = 18
 """ONNX opset used for the export (rsl-rl's choice)."""

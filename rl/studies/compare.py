@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
-from rl.run_folder import (
+from rl.runs.folder import (
     CONFIG_FILE,
     EVAL_FILE,
     EVENTS_GLOB,

@@ -18,27 +18,27 @@ from rsl_rl.env import VecEnv
 from rsl_rl.runners import OnPolicyRunner
 
 from optimal_control.files import atomic_write_json
+from rl.a2cf.config import get_mode
+from rl.a2cf.modes import MotionOnlyEnv
 from rl.agents.models import ASSIST_ACTION_DIM
-from rl.agents.modes import MotionOnlyEnv, get_mode
-from rl.alone_eval import AloneEvalConfig, rollout_alone
 from rl.envs.vec_env import G1VecEnv
-from rl.run_folder import (
+from rl.evaluation.alone import rollout_alone
+from rl.evaluation.config import AloneEvalConfig
+from rl.runs.folder import (
+    CHECKPOINT_DIR,
     CHECKPOINT_EVALS_LOG,
     EVAL_FILE,
     EVALS_DIR,
+    LAST_CHECKPOINT,
+    POLICY_FILE,
     REEXPORT_ADVICE,
     load_checkpoint,
+    load_run_config,
     newest_readable_checkpoint,
     read_run_jsonl,
 )
-from rl.runner import (
-    CHECKPOINT_DIR,
-    LAST_CHECKPOINT,
-    POLICY_FILE,
-    load_run_config,
-    resolve_task,
-    rsl_rl_config,
-)
+from rl.tasks.registry import resolve_task
+from rl.training.config import rsl_rl_config, with_task_defaults
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,9 @@ class EvalConfig:
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
     video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length, or to the reference's length on a tracking task [s]
     video_ghost_side_m: float = 1.0  # the reference's ghost (tracking tasks) shifted to the camera's right; 0 overlays it on the robot's reference pose [m]
-    sim2sim: bool = False  # also roll the ONNX policy out in the second simulator (rl.sim2sim)
+    sim2sim: bool = (
+        False  # also roll the ONNX policy out in the second simulator (rl.evaluation.sim2sim)
+    )
 
     def __post_init__(self) -> None:
         if self.num_envs < 1:
@@ -76,7 +78,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     motion (:meth:`~rl.envs.components.Command.reference_qpos`) shows it as a ghost beside the
     robot. The result is also written to ``RUN_DIR/eval.json``.
     """
-    from rl.export import OnnxMotionPolicy
+    from rl.agents.export import OnnxMotionPolicy
 
     run_dir = Path(run_dir)
     train_cfg = load_run_config(run_dir)
@@ -98,7 +100,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             )
 
     if cfg.sim2sim:  # sim2sim runs the ONNX policy of the bundle: both checked before rollouts
-        from rl.sim2sim import load_bundle
+        from rl.evaluation.sim2sim import load_bundle
 
         if not cfg.use_onnx:
             _require_exported_policy(run_dir, train_cfg.export_onnx)
@@ -134,7 +136,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         **alone,
     }
     if cfg.sim2sim:
-        from rl.sim2sim import Sim2SimConfig, run_sim2sim
+        from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
 
         result["sim2sim"] = run_sim2sim(
             run_dir, env.task, num_steps, Sim2SimConfig(num_envs=cfg.num_envs, seed=cfg.seed)
@@ -178,12 +180,12 @@ def _require_exported_policy(run_dir: Path, exported: bool) -> None:
 
 def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
     """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``,
-    on the env's device (a damaged checkpoint: :class:`~rl.run_folder.DamagedRunFileError` naming
+    on the env's device (a damaged checkpoint: :class:`~rl.runs.folder.DamagedRunFileError` naming
     it)."""
     state = load_checkpoint(path)
     mode = get_mode(train_cfg.mode)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)
-    cfg = rsl_rl_config(train_cfg, mode)
+    cfg = rsl_rl_config(with_task_defaults(train_cfg, env.task), mode)
     with contextlib.redirect_stdout(io.StringIO()):
         runner = OnPolicyRunner(learner_env, cfg, log_dir=None, device=str(env.device))
     runner.alg.load(state, {"actor": True}, strict=True)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import torch
 
+from optimal_control.bounds import AXIS_NAMES, PAPER_ETA0
+
 WRENCH_DIM = 6
 """Force (3) then torque (3)."""
 
@@ -104,3 +106,32 @@ class AssistState:
         if not self.enabled:
             return torch.zeros_like(raw), bound, mask
         return assist_wrench(raw, bound, mask), bound, mask
+
+
+WRENCH_AXES: tuple[str, ...] = AXIS_NAMES
+"""Names of the six wrench components: force [N] then moment [Nm] at the pelvis, on the axes of
+the robot's heading frame (:class:`rl.envs.assist_action.AssistAction`)."""
+
+
+def paper_bound_rows(paper_task: str) -> tuple[tuple[float, ...], ...]:
+    """The paper's hand-set initial bounds of ``paper_task`` ("walk", "dance", "backflip"), one
+    6-D row per phase, from the one table :data:`optimal_control.bounds.PAPER_ETA0`."""
+    if paper_task not in PAPER_ETA0:
+        raise ValueError(
+            f"the paper has no initial-bound row for '{paper_task}'; known: {sorted(PAPER_ETA0)}"
+        )
+    return tuple(tuple(float(v) for v in row) for row in PAPER_ETA0[paper_task]["all"])
+
+
+def less_assist(applied_wrench: torch.Tensor, bound: torch.Tensor) -> torch.Tensor:
+    """A2CF less-assist reward exp(-2 |F| / |eta|) of the applied wrench (N, 6) and its bound (N, 6).
+
+    1 without help; an env whose bound is zero (no help possible) gets 1. Added by the env (not a
+    task term) while the curriculum has it switched on.
+    """
+    force_norm = applied_wrench.norm(dim=-1)
+    bound_norm = bound.norm(dim=-1)
+    ratio = torch.where(
+        bound_norm > 0, force_norm / bound_norm.clamp_min(1e-9), torch.zeros_like(force_norm)
+    )
+    return torch.exp(-2.0 * ratio)

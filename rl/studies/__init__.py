@@ -1,0 +1,1 @@
+"""Learning studies: comparisons of runs, curves to a target."""

@@ -1,0 +1,1 @@
+"""The paper's backflip: the FSM task and its terms."""

@@ -1,0 +1,1 @@
+"""Training runs: TrainConfig and the rsl-rl config, the runner, train(), torchrun."""
