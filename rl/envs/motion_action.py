@@ -55,3 +55,20 @@ class MotionAction:
         """Restore both actions (onto this part's device)."""
         self.action = state["action"].to(self.device, copy=True)
         self.last_action = state["last_action"].to(self.device, copy=True)
+
+
+def checked_actions(
+    actions: torch.Tensor, shape: tuple[int, int], clip: float, device: torch.device | str
+) -> tuple[torch.Tensor, int]:
+    """``actions`` (N, 35) as float32 on ``device``, non-finite rows zeroed (MuJoCo would reset
+    them; returned: how many) and clipped to ``[-clip, clip]``; a wrong shape is one line."""
+    if tuple(actions.shape) != shape:
+        raise ValueError(
+            f"G1VecEnv.step expects actions of shape {shape} = (num_envs, 29 joint + 6 assist), "
+            f"got {tuple(actions.shape)}."
+        )
+    actions = actions.detach().to(device, torch.float32)
+    nonfinite = int((~torch.isfinite(actions).all(dim=-1)).sum())
+    if nonfinite:
+        actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
+    return actions.clamp(-clip, clip), nonfinite

@@ -30,6 +30,12 @@ class TaskComponents:
         tensors on its device, which is ``device``)."""
         self.device = device
         self.command_gen = task.commands.build(num_envs, generator)
+        if task.actions_around_reference and self.command_gen.reference_joint_pos_rad() is None:
+            raise ValueError(
+                f"task '{task.name}': actions_around_reference needs a command with reference "
+                f"joints (a tracking task's), but its command is {type(self.command_gen).__name__}; "
+                "drop --task-actions-around-reference"
+            )
         self.command = torch.zeros(num_envs, task.commands.dim, device=device)
         self.phase_machine = task.phases.build(num_envs, generator)
         self.skill = task.skill.build(max_episode_length)

@@ -1,19 +1,16 @@
 """``G1VecEnv``: N G1 instances stepped together, as an rsl-rl ``VecEnv``, assembled from parts.
 
-Each part owns its state and ``state_dict`` (:data:`PARTS`): the physics (:mod:`rl.envs.physics`,
-MuJoCo C; or :mod:`rl.envs.warp_physics`, MuJoCo Warp, with ``EnvConfig.backend="warp"``), the
-motion and assist halves of the action (:mod:`rl.envs.assist_action` states the assist wrench's
-frame), observation groups, pushes, randomiser, reset events, contact timers
-and the task's components. :meth:`G1VecEnv.step` is the list of stages, torch operations over the
-whole batch. Everything task-specific comes from a :class:`rl.envs.task_schema.TaskConfig`; this
-module never branches on a task, and knows no curriculum: Algorithm 1 is the runner's, once
-per iteration (:mod:`rl.a2cf.algorithm1`), through the setters below.
+Each part owns its state and ``state_dict`` (:data:`PARTS`): the physics (MuJoCo C or Warp,
+:mod:`rl.envs.backends`), the motion and assist halves of the action (:mod:`rl.envs.assist_action`
+states the wrench's frame), observation groups, pushes, randomiser, reset events, contact timers
+and the task's components. :meth:`G1VecEnv.step` is the list of stages over the whole batch. The
+env never branches on a task and knows no curriculum (Algorithm 1 is the runner's, through the
+setters below).
 """
 
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import torch
@@ -22,12 +19,12 @@ from tensordict import TensorDict
 
 from rl.envs.assist import WRENCH_DIM
 from rl.envs.assist_action import AssistAction
+from rl.envs.backends import make_physics
 from rl.envs.config import EnvConfig
 from rl.envs.contact_timers import ContactTimers
 from rl.envs.model import build_physics_model
-from rl.envs.motion_action import MotionAction
+from rl.envs.motion_action import MotionAction, checked_actions
 from rl.envs.observation_groups import ObservationGroups
-from rl.envs.physics import MujocoRolloutPhysics
 from rl.envs.pushes import Pushes
 from rl.envs.randomization import Randomizer
 from rl.envs.reset_events import ResetEvents
@@ -71,17 +68,7 @@ class G1VecEnv(VecEnv):
         self.total_mass_kg = float(self.model.body_subtreemass[0])
         self.weight_n = self.total_mass_kg * GRAVITY_MPS2
         self.randomizer = Randomizer(task.randomization, self.model, n, gen, dev)
-        if cfg.backend == "warp":
-            from rl.envs.warp_physics import WarpPhysics  # the gpu extra, imported where used
-
-            self.physics = WarpPhysics(
-                self.model, self.randomizer.models, cfg.decimation, cfg.max_abs_qvel, cfg.device
-            )
-        else:
-            threads = cfg.num_threads or os.cpu_count() or 1
-            self.physics = MujocoRolloutPhysics(
-                self.model, self.randomizer.models, cfg.decimation, threads, cfg.max_abs_qvel
-            )
+        self.physics = make_physics(cfg, self.model, self.randomizer.models)
         self.layout, self.physics_dt_s = self.physics.layout, self.physics.physics_dt_s
         self.step_dt_s = dt = self.physics_dt_s * cfg.decimation
         self.max_episode_length = math.ceil(task.episode_length_s / dt)
@@ -104,15 +91,8 @@ class G1VecEnv(VecEnv):
             "joint_pos_limits_rad": torch.as_tensor(self.layout.joint_range_rad).float().to(dev),
         }
         self.task_components = TaskComponents(task, n, self.max_episode_length, gen, dev)
-        if task.actions_around_reference and self.command_gen.reference_joint_pos_rad() is None:
-            raise ValueError(
-                f"task '{task.name}': actions_around_reference needs a command with reference "
-                f"joints (a tracking task's), but its command is {type(self.command_gen).__name__}; "
-                "drop --task-actions-around-reference"
-            )
         self.reset_envs(torch.arange(n, device=dev))
 
-    # ---------------------------------------------------------------- what other code reads
     state = property(lambda self: self.physics.state, doc="(N, nstate) MuJoCo state rows.")
     control = property(lambda self: self.physics.control, doc="(N, decimation, ncontrol) rows.")
     models = property(lambda self: self.physics.models, doc="(N,) the MjModel of each env.")
@@ -138,7 +118,6 @@ class G1VecEnv(VecEnv):
     def episode_length_buf(self, value: torch.Tensor) -> None:
         self.resets.episode_length_buf = value
 
-    # ---------------------------------------------------------------- runner-facing setters
     def set_assist_bound(self, eta: torch.Tensor) -> None:
         """Set eta (num_phases, 6) [N, Nm], the per-phase, per-axis wrench bound."""
         self.assist.set_bound(eta)
@@ -161,7 +140,6 @@ class G1VecEnv(VecEnv):
         self.assist.set_alone_share(share)
         self.task_components.track_alone(window if share > 0 else None)
 
-    # ---------------------------------------------------------------- VecEnv API
     def get_observations(self) -> TensorDict:
         """Current observation groups (see ``rl_contract.md``)."""
         return self.observations.obs
@@ -243,8 +221,6 @@ class G1VecEnv(VecEnv):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` output of an env of the same task, size and config."""
-        if "physics" not in state:
-            raise ValueError("env checkpoint of an older layout (no env parts): start a new run")
         for name in PARTS:
             getattr(self, name).load_state_dict(state[name])
         self.generator.set_state(state["generator"])
@@ -259,21 +235,11 @@ class G1VecEnv(VecEnv):
         """The columns of one named term in the current observation group (N, D)."""
         return self.observations.term(self.env_state, group, term)
 
-    # ---------------------------------------------------------------- internals
     def _apply_actions(self, actions: torch.Tensor) -> int:
         """Check the actions (N, 35), zero non-finite rows (MuJoCo would reset them; returned: how
         many), clip, and hand the joint targets and the world-frame assist wrench to the physics."""
-        n = self.num_envs
-        if actions.shape != (n, self.num_actions):
-            raise ValueError(
-                f"G1VecEnv.step expects actions of shape ({n}, {self.num_actions}) = (num_envs, "
-                f"29 joint + 6 assist), got {tuple(actions.shape)}."
-            )
-        actions = actions.detach().to(self.device, torch.float32)
-        nonfinite = int((~torch.isfinite(actions).all(dim=-1)).sum())
-        if nonfinite:
-            actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
-        actions = actions.clamp(-self.cfg.clip_actions, self.cfg.clip_actions)
+        shape = (self.num_envs, self.num_actions)
+        actions, nonfinite = checked_actions(actions, shape, self.cfg.clip_actions, self.device)
         targets = self.motion.apply(actions[:, : g1.NUM_JOINTS], self._action_base())
         self.assist.apply(actions[:, g1.NUM_JOINTS :], self.phase)
         self.physics.set_controls(targets, self.assist.to_world(self.physics.qpos[:, 3:7].float()))
