@@ -339,7 +339,7 @@ def _run_lane(
     run_dir = out / RUNS_DIR / name
     train_log = out / LOGS_DIR / f"train_{name}.log"
     eval_log = out / LOGS_DIR / f"eval_{name}.log"
-    follower = TrainFollower(train_log, run_dir, cfg.iterations, warmstart=name == A2CF)
+    follower = TrainFollower(run_dir, cfg.iterations, warmstart=name == A2CF)
 
     def train_done(wall_s: float) -> str:
         m = json.loads((run_dir / METRICS_FILE).read_text())

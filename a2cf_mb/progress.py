@@ -1,17 +1,14 @@
 """Live progress of child processes (the stages of ``a2cf-mb demo``).
 
-Each child writes its stdout and stderr to a log file. :class:`TrainFollower` reads a training
-run's progress from that log (rsl-rl's block after each iteration: its index, total env steps,
-mean episode length) and from its run folder (the curriculum log's bound and applied force, the
-evaluations of the policy alone); :func:`format_train_status` makes one line of it.
+Each child writes its stdout and stderr to a log file (the tail shown when it fails).
+:class:`TrainFollower` reads a training run's progress from its run folder: the per-iteration
+metrics rows the runner writes (``metrics.jsonl``: iterations done, total env steps, mean
+episode length), the curriculum log's bound and applied force, the evaluations of the policy
+alone; :func:`format_train_status` makes one line of it.
 :class:`StatusBoard` shows one line per running child: redrawn in place every ``refresh_s`` on a
 terminal, printed as a block every ``plain_interval_s`` otherwise (a log file, CI). :func:`run_lanes`
 runs lanes of children side by side (each lane one child after the other) until all are done, or
 stops them all when one fails and raises :class:`StageFailedError` with the tail of its log.
-
-The rsl-rl block is parsed by three patterns (:data:`ITERATION_RE` and the two after it); should
-its wording change, the status line shows less (no iteration count: no ETA either), and nothing
-else breaks.
 """
 
 from __future__ import annotations
@@ -32,16 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from rl.runs.folder import CONFIG_FILE, CURRICULUM_LOG, EVALS_LOG, WARMSTART_FILE
+from rl.runs.folder import CONFIG_FILE, CURRICULUM_LOG, EVALS_LOG, METRICS_LOG, WARMSTART_FILE
 
-ITERATION_RE = re.compile(r"Learning iteration (\d+)/(\d+)")
-"""rsl-rl's header of an iteration's block: the 0-based index of the iteration just done / total."""
-TOTAL_STEPS_RE = re.compile(r"^\s*Total steps:\s*(\d+)")
-"""rsl-rl's env steps collected so far (all iterations of this process)."""
-EPISODE_LENGTH_RE = re.compile(r"^\s*Mean episode length:\s*([0-9.]+)")
-"""rsl-rl's mean length of the training episodes that ended recently [steps]."""
 ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
-"""Terminal escape sequences (rsl-rl prints its header in bold)."""
+"""Terminal escape sequences (rsl-rl prints its header in bold), left out of a log's tail."""
 INTERRUPT_GRACE_S = 10.0
 """After Ctrl-C, how long the children may take to end by themselves before they are stopped [s]."""
 
@@ -95,58 +86,37 @@ class TrainSnapshot:
 
 
 class TrainFollower:
-    """Follows one training run: its log (rsl-rl's blocks) and its run folder.
+    """Follows one training run through its run folder.
 
-    ``poll()`` reads what was appended to the log since the last call and the tails of the run
-    folder's curriculum and evaluation logs; the ETA comes from the iterations seen since the first
-    one (so it includes the evaluations during training, and not the start-up).
+    ``poll()`` reads the last lines of the run folder's metrics, curriculum and evaluation logs;
+    the ETA comes from the iterations seen since the first one (so it includes the evaluations
+    during training, and not the start-up).
     """
 
     def __init__(
         self,
-        log: Path,
         run_dir: Path,
         total: int,
         warmstart: bool = False,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """Follow ``log`` and ``run_dir`` of a run of ``total`` iterations (``warmstart``: it
-        distils the assist head before its first iteration)."""
-        self.log = log
+        """Follow ``run_dir``, a run of ``total`` iterations (``warmstart``: it distils the
+        assist head before its first iteration)."""
         self.run_dir = run_dir
         self.warmstart = warmstart
         self.clock = clock
         self.snapshot = TrainSnapshot(total=total)
-        self._offset = 0
-        self._partial = ""
         # (time, completed iterations) when the first iteration was seen: the ETA's reference
         self._first: tuple[float, int] | None = None
 
-    def feed(self, text: str) -> None:
-        """Parse a chunk of the log (lines may be split across chunks)."""
-        snap = self.snapshot
-        lines = (self._partial + text).split("\n")
-        self._partial = lines.pop()
-        for raw in lines:
-            line = ANSI_RE.sub("", raw)
-            if m := ITERATION_RE.search(line):
-                snap.completed, snap.total = int(m.group(1)) + 1, int(m.group(2))
-            elif m := TOTAL_STEPS_RE.match(line):
-                snap.env_steps = int(m.group(1))
-            elif m := EPISODE_LENGTH_RE.match(line):
-                snap.mean_episode_length = float(m.group(1))
-
     def poll(self) -> TrainSnapshot:
         """Read what is new and return the snapshot."""
-        try:
-            with self.log.open("rb") as f:
-                f.seek(self._offset)
-                data = f.read()
-        except OSError:
-            data = b""
-        self._offset += len(data)
-        self.feed(data.decode(errors="replace"))
         snap = self.snapshot
+        metrics = _last_json_line(self.run_dir / METRICS_LOG)
+        if metrics is not None:
+            snap.completed, snap.total = metrics["completed"], metrics["total_iterations"]
+            snap.env_steps = metrics["total_env_steps"]
+            snap.mean_episode_length = metrics.get("mean_episode_length")
         row = _last_json_line(self.run_dir / CURRICULUM_LOG)
         if row is not None and row.get("eta"):
             snap.bound_force_n = max(sum(v * v for v in r[:3]) ** 0.5 for r in row["eta"])

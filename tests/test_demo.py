@@ -34,15 +34,9 @@ from a2cf_mb.progress import (
 )
 
 # The end of one rsl-rl iteration block as rsl-rl 5.5 prints it (header in bold).
-RSL_RL_BLOCK = (
-    "#" * 80 + "\n"
-    "\x1b[1m" + " Learning iteration 119/320 ".center(80) + "\x1b[0m \n\n"
-    "                            Total steps: 368640 \n"
-    "                       Steps per second: 1521 \n"
-    "                            Mean reward: 31.31\n"
-    "                    Mean episode length: 82.41\n"
-    "                                    ETA: 0:13:15\n"
-)  # fmt: skip
+METRICS_ROW = {"iteration": 119, "completed": 120, "total_iterations": 320,
+               "total_env_steps": 368_640, "mean_episode_length": 82.41}  # fmt: skip
+"""A line of the runner's metrics.jsonl."""
 ALONE_ROW = {
     "iteration": 96, "env_steps": 294912, "survival_fraction": 0.25,
     "task_metrics": {"skill_error_rad": 0.8125, "joint_all_rad": 0.12},
@@ -72,20 +66,24 @@ def _fake_run_folder(run_dir: Path) -> None:
 
 
 # ------------------------------------------------------------------------------- progress
+def _append_metrics(run_dir: Path, **row) -> None:
+    with (run_dir / "metrics.jsonl").open("a") as f:
+        f.write(json.dumps({**METRICS_ROW, **row}) + "\n")
+
+
 def test_follower_reads_iteration_steps_length_bound_and_eta(tmp_path):
-    log, run_dir, clock = tmp_path / "train.log", tmp_path / "run", FakeClock()
-    follower = TrainFollower(log, run_dir, total=320, warmstart=True, clock=clock)
-    log.write_text("$ a2cf-mb train ...\n")
+    run_dir, clock = tmp_path / "run", FakeClock()
+    follower = TrainFollower(run_dir, total=320, warmstart=True, clock=clock)
     assert follower.poll().phase == "starting"
     _fake_run_folder(run_dir)
     assert follower.poll().phase == "warm start"  # config.json written, warmstart.json not yet
     (run_dir / "warmstart.json").write_text("{}")
     assert follower.poll().phase == "first iteration"
-    with log.open("a") as f:  # the block arrives in two chunks, split inside a line
-        f.write(RSL_RL_BLOCK[:200])
-    follower.poll()
-    with log.open("a") as f:
-        f.write(RSL_RL_BLOCK[200:])
+    with (run_dir / "metrics.jsonl").open("a") as f:  # a line being written: not read yet
+        f.write(json.dumps(METRICS_ROW)[:40])
+    assert follower.poll().phase == "first iteration"
+    with (run_dir / "metrics.jsonl").open("a") as f:
+        f.write(json.dumps(METRICS_ROW)[40:] + "\n")
     snap = follower.poll()
     assert (snap.completed, snap.total, snap.env_steps) == (120, 320, 368_640)
     assert snap.mean_episode_length == pytest.approx(82.41)
@@ -93,18 +91,17 @@ def test_follower_reads_iteration_steps_length_bound_and_eta(tmp_path):
     assert snap.alone == ALONE_ROW
     assert snap.eta_s is None  # one iteration seen: no rate yet
     clock.now = 20.0
-    with log.open("a") as f:
-        f.write(RSL_RL_BLOCK.replace("119/320", "129/320"))
+    _append_metrics(run_dir, completed=130)
     snap = follower.poll()
     assert snap.completed == 130
     assert snap.eta_s == pytest.approx(2.0 * 190)  # 10 iterations in 20 s, 190 to go
 
 
 def test_status_line_says_iteration_steps_length_bound_alone_and_eta(tmp_path):
-    log, run_dir = tmp_path / "train.log", tmp_path / "run"
+    run_dir = tmp_path / "run"
     _fake_run_folder(run_dir)
-    log.write_text(RSL_RL_BLOCK)
-    follower = TrainFollower(log, run_dir, total=320)
+    _append_metrics(run_dir)
+    follower = TrainFollower(run_dir, total=320)
     snap = follower.poll()
     snap.eta_s = 280.0
     line = format_train_status(A2CF, snap, 400.0, "skill_error_rad")
@@ -113,7 +110,7 @@ def test_status_line_says_iteration_steps_length_bound_alone_and_eta(tmp_path):
                    "ETA 4:40"):  # fmt: skip
         assert needle in line, line
     assert line.index("ETA") < line.index("alone@")  # a narrow terminal cuts the end
-    starting = format_train_status(BASELINE, TrainFollower(log, tmp_path / "x", 5).snapshot, 3, "m")
+    starting = format_train_status(BASELINE, TrainFollower(tmp_path / "x", 5).snapshot, 3, "m")
     assert "starting" in starting and "ETA" not in starting
     assert clock_str(3725) == "1:02:05" and clock_str(59.6) == "1:00"
 

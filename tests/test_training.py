@@ -113,6 +113,8 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     # whose checkpoint was never written: the resume drops that line and redoes the iteration
     with open(first.run_dir / CURRICULUM_LOG, "a") as f:
         f.write(json.dumps({"iteration": 2, "eta": [[0.0] * 6]}) + "\n")
+    with open(first.run_dir / "metrics.jsonl", "a") as f:
+        f.write(json.dumps({"iteration": 2, "completed": 3}) + "\n")
     resumed = train(
         dataclasses.replace(TrainConfig(), resume=str(first.run_dir), iterations=4), verbose=False
     )
@@ -127,6 +129,10 @@ def test_resume_continues_iterations_and_curriculum(tmp_path) -> None:
     assert any(abs(float(ratio[0, 0]) - r) < 1e-5 for r in (0.8, 1.0, 1.2, 0.64, 0.96))
     metrics = json.loads((first.run_dir / "metrics.json").read_text())
     assert [row["iteration"] for row in metrics["iterations"]] == [0, 1, 2, 3]
+    live = read_jsonl(first.run_dir / "metrics.jsonl")  # what progress displays read
+    assert [row["completed"] for row in live] == [1, 2, 3, 4]
+    steps = cfg.env.num_envs * cfg.num_steps_per_env
+    assert [row["total_env_steps"] for row in live] == [k * steps for k in (1, 2, 3, 4)]
     final = torch.load(first.run_dir / CHECKPOINT_DIR / LAST_CHECKPOINT, weights_only=False)
     assert final["completed_iterations"] == 4
     assert final["a2cf"]["curriculum"]["num_updates"] == 4

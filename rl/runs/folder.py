@@ -54,6 +54,9 @@ CURRICULUM_LOG = "curriculum.jsonl"
 """One line per curriculum update: bounds, applied wrench, switches."""
 METRICS_FILE = "metrics.json"
 """Per-iteration figures and the run summary, written when the run ends."""
+METRICS_LOG = "metrics.jsonl"
+"""One line per iteration as it is checkpointed: the iteration's metrics row, ``completed``,
+``total_iterations`` and ``total_env_steps`` (what progress displays read, live)."""
 WARMSTART_FILE = "warmstart.json"
 """Report of the warm start (``--warmstart`` / ``--warmstart-motion``)."""
 POLICY_FILE = "policy.onnx"
@@ -487,7 +490,8 @@ def remove_unstarted_run(run_dir: Path) -> None:
         (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
     ):
         return
-    names = (CONFIG_FILE, GIT_FILE, CURRICULUM_LOG, WARMSTART_FILE, EVALS_LOG, EVALS_DIR)
+    names = (CONFIG_FILE, GIT_FILE, CURRICULUM_LOG, METRICS_LOG, WARMSTART_FILE, EVALS_LOG,
+             EVALS_DIR)  # fmt: skip
     for path in [*(run_dir / n for n in names), *run_dir.glob(EVENTS_GLOB)]:
         if path.is_dir():
             shutil.rmtree(path, ignore_errors=True)
@@ -531,6 +535,6 @@ def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
             "iteration); starting it again from iteration 0 with its saved config",
             file=sys.stderr,
         )
-        for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG]:
+        for stale in [*run_dir.glob(EVENTS_GLOB), run_dir / CURRICULUM_LOG, run_dir / METRICS_LOG]:
             stale.unlink(missing_ok=True)
     return StartPoint(cfg, None, json.loads((run_dir / CONFIG_FILE).read_text()).get("eta0"))

@@ -73,6 +73,7 @@ from rl.runs.folder import (
     GIT_FILE,
     LAST_CHECKPOINT,
     METRICS_FILE,
+    METRICS_LOG,
     POLICY_FILE,
     WARMSTART_FILE,
     RunFolderLock,
@@ -315,9 +316,32 @@ class A2CFRunner(OnPolicyRunner):
         if completed % self.keep_interval == 0 or completed == self.total_iterations:
             atomic_write_bytes(folder / f"model_{completed}.pt", data)
         self._write_curriculum_log()
+        self._append_metrics_row(completed)
         if alone is not None:
             alone.write()
         self.logger.save_model(str(folder / LAST_CHECKPOINT), completed)
+
+    def _progress_row(self, row: dict[str, Any], completed: int, total_env_steps: int) -> str:
+        return json.dumps({**row, "completed": completed, "total_iterations": self.total_iterations,
+                           "total_env_steps": total_env_steps}) + "\n"  # fmt: skip
+
+    def _append_metrics_row(self, completed: int) -> None:
+        """metrics.jsonl gets this iteration's row (live progress for the demo and the CLI)."""
+        if not self.logger.rows:
+            return
+        line = self._progress_row(self.logger.rows[-1], completed, int(self.logger.tot_timesteps))
+        with open(self.run_dir / METRICS_LOG, "a") as f:
+            f.write(line)
+
+    def _write_metrics_log(self) -> None:
+        """metrics.jsonl = the checkpointed rows (rows of iterations after the checkpoint go)."""
+        rows, size = self.logger.rows, self.cfg["num_steps_per_env"] * self.env.num_envs
+        first = self.current_learning_iteration - len(rows)
+        text = "".join(
+            self._progress_row(row, first + k + 1, (first + k + 1) * size * self.gpu_world_size)
+            for k, row in enumerate(rows)
+        )
+        atomic_write_text(self.run_dir / METRICS_LOG, text)
 
     def _env_steps_after_iteration(self) -> int:
         """Env steps of the run once this iteration is counted (rsl-rl counts at its log call,
@@ -377,6 +401,7 @@ class A2CFRunner(OnPolicyRunner):
             self.env.generator.manual_seed(self.env.cfg.seed)
             return
         self._write_curriculum_log()
+        self._write_metrics_log()
         if self.alone_eval is not None:
             self.alone_eval.write()
 
