@@ -17,11 +17,11 @@ from rl.envs.config import EnvConfig
 from rl.envs.model import STATE_SPEC
 from rl.envs.randomization import PARAM_NAMES
 from rl.envs.task_schema import InitialStateConfig, quiet
+from rl.envs.terms import ObsTerm, RewardTerm, TerminationTerm
 from rl.envs.vec_env import G1VecEnv
 from rl.tasks import observations, rewards
 from rl.tasks.registry import TASKS, describe_tasks, get_task, make_env, register_task
 from rl.tasks.stand.task import STAND
-from rl.tasks.terms import ObsTerm, RewardTerm, TerminationTerm
 from robots import g1
 
 N = 6

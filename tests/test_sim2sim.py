@@ -18,13 +18,13 @@ from rl.agents.export import export_motion_policy
 from rl.agents.models import A2CFActor
 from rl.envs.config import EnvConfig
 from rl.envs.task_schema import TaskConfig, quiet
+from rl.envs.terms import TerminationTerm
 from rl.evaluation.config import AloneEvalConfig
 from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
 from rl.tasks import terminations
 from rl.tasks.dance.task import DANCE_JOINTS as DANCE
 from rl.tasks.registry import TASKS, make_env
 from rl.tasks.stand.task import STAND
-from rl.tasks.terms import TerminationTerm
 from rl.tasks.walk.task import WALK_FLAT
 from rl.training.config import ModelConfig, PPOConfig, TrainConfig
 from rl.training.runner import train

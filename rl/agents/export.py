@@ -66,7 +66,7 @@ def reference_joint_columns(command_gen: Any) -> list[int]:
 
 def command_parts(command_gen: Any, first_column: int, width: int) -> list[dict[str, Any]]:
     """The bundle's ``parts`` of the command term at columns ``first_column`` + [0, ``width``):
-    the command generator's blocks (:meth:`rl.tasks.components.Command.columns`) with their
+    the command generator's blocks (:meth:`rl.envs.components.Command.columns`) with their
     columns, or one block saying that the generator describes none."""
     blocks = command_gen.columns()
     if not blocks:

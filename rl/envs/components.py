@@ -234,6 +234,43 @@ class SkillMeasure(Component, ABC):
         return ~time_outs | (lived_steps >= self.max_episode_length)
 
 
+class WindowedSkill(SkillMeasure):
+    """The skill measure every task shares: one score per counted finished episode (a task says
+    how it scores an episode, :meth:`episode_scores`) in a moving window of ``window`` episodes;
+    the window is the measure's whole state."""
+
+    def __init__(self, cfg: Any, window: int, max_episode_length: int) -> None:
+        """Keep ``cfg`` (the task's skill config) and an empty window."""
+        self.cfg = cfg
+        self.max_episode_length = max_episode_length
+        self.window = EpisodeWindow(window)
+
+    @abstractmethod
+    def episode_scores(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, state: EnvState
+    ) -> torch.Tensor:
+        """The score (M,) of each finished episode of ``env_ids`` (M,) from its last state."""
+
+    def on_episodes_end(
+        self,
+        env_ids: torch.Tensor,
+        time_outs: torch.Tensor,
+        lived_steps: torch.Tensor,
+        state: EnvState,
+    ) -> None:
+        """Push the scores of the counted finished episodes (:meth:`counted`)."""
+        scores = self.episode_scores(env_ids, time_outs, state)
+        self.window.push(scores[self.counted(time_outs, lived_steps)])
+
+    def state_dict(self) -> dict[str, Any]:
+        """The window."""
+        return self.window.state_dict()
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the window."""
+        self.window.load_state_dict(state)
+
+
 @dataclass(frozen=True)
 class SurvivalSkillConfig:
     """Skill = fraction of recent finished episodes that survived a full episode, over a target."""
@@ -252,32 +289,19 @@ class SurvivalSkillConfig:
         return SurvivalSkill(self, max_episode_length)
 
 
-class SurvivalSkill(SkillMeasure):
+class SurvivalSkill(WindowedSkill):
     """Moving window of survived (1) / fell (0) flags; see :class:`SurvivalSkillConfig`."""
 
     def __init__(self, cfg: SurvivalSkillConfig, max_episode_length: int) -> None:
-        self.cfg = cfg
-        self.max_episode_length = max_episode_length
-        self.window = EpisodeWindow(cfg.window)
+        """An empty window of ``cfg.window`` episodes."""
+        super().__init__(cfg, cfg.window, max_episode_length)
 
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Push flags; episodes cut short by a time limit before a full episode are skipped."""
-        self.window.push(time_outs[self.counted(time_outs, lived_steps)])
+    def episode_scores(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, state: EnvState
+    ) -> torch.Tensor:
+        """Survived: ended by the time limit."""
+        return time_outs
 
     def progress(self) -> float:
         """Survival fraction of the window over ``target_survival`` (0 before any episode)."""
         return self.window.mean() / self.cfg.target_survival
-
-    def state_dict(self) -> dict[str, Any]:
-        """The window."""
-        return self.window.state_dict()
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the window."""
-        self.window.load_state_dict(state)

@@ -1,6 +1,6 @@
 """Observation terms: pure functions of the batched :class:`EnvState`, each returning (N, D).
 
-Tasks list them per observation group as :class:`rl.tasks.terms.ObsTerm` (name, function, scale,
+Tasks list them per observation group as :class:`rl.envs.terms.ObsTerm` (name, function, scale,
 noise); the env concatenates a group's terms in order. Nothing here knows column offsets.
 """
 

@@ -1,6 +1,6 @@
 """Reward terms: small pure functions of the batched :class:`EnvState`, each returning shape (N,).
 
-A task lists them as :class:`rl.tasks.terms.RewardTerm` (name, function, weight, parameters); the
+A task lists them as :class:`rl.envs.terms.RewardTerm` (name, function, weight, parameters); the
 env multiplies each by its weight and the policy step dt and logs it as ``Reward/<name>``.
 Penalties return positive magnitudes and take negative weights. No term reads or writes env state
 beyond its argument.

@@ -25,10 +25,10 @@ import torch
 from optimal_control.files import atomic_savefig
 from rl.envs.assist import paper_bound_rows
 from rl.envs.task_schema import InitialStateConfig, PushConfig, RandomizationConfig, TaskConfig
+from rl.envs.terms import RewardTerm, TerminationTerm
 from rl.tasks import rewards, terminations
 from rl.tasks.backflip import terms as bt
 from rl.tasks.stand.task import STAND_OBSERVATIONS
-from rl.tasks.terms import RewardTerm, TerminationTerm
 
 GROUND = (bt.STAND, bt.CROUCH, bt.LAND)
 FLIGHT = (bt.JUMP, bt.AIR)

@@ -25,14 +25,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from rl.envs.state import EnvState, quat_rotate
-from rl.tasks.components import (
+from rl.envs.components import (
     Command,
     CommandColumns,
-    EpisodeWindow,
     PhaseMachine,
     SkillMeasure,
+    WindowedSkill,
 )
+from rl.envs.state import EnvState, quat_rotate
 from robots import g1
 
 BACKFLIP_PHASES = ("stand", "crouch", "jump", "air", "land")
@@ -380,27 +380,22 @@ def backflip_success(s: EnvState, cfg: BackflipSkillConfig) -> torch.Tensor:
     return (s.phase == LAND) & held & upright & still
 
 
-class BackflipSkill(SkillMeasure):
+class BackflipSkill(WindowedSkill):
     """Moving window of success (1) / miss (0) flags (see :class:`BackflipSkillConfig`)."""
 
     def __init__(self, cfg: BackflipSkillConfig, max_episode_length: int) -> None:
-        self.cfg = cfg
-        self.max_episode_length = max_episode_length
-        self.window = EpisodeWindow(cfg.window)
+        """An empty window of ``cfg.window`` episodes."""
+        super().__init__(cfg, cfg.window, max_episode_length)
         self.last_env_ids = torch.zeros(0, dtype=torch.long)
         self.last_success = torch.zeros(0, dtype=torch.bool)
 
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Judge the finished episodes from their last state and push the counted ones."""
+    def episode_scores(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, state: EnvState
+    ) -> torch.Tensor:
+        """Landed (1) or not (0), judged from the last state (kept for the evaluator)."""
         success = time_outs & backflip_success(state, self.cfg)[env_ids]
         self.last_env_ids, self.last_success = env_ids.clone(), success.clone()
-        self.window.push(success[self.counted(time_outs, lived_steps)])
+        return success
 
     def success_rate(self) -> float:
         """Success fraction of the window (0 before any counted episode) [-]."""
@@ -413,11 +408,3 @@ class BackflipSkill(SkillMeasure):
     def log(self) -> dict[str, float]:
         """The success rate of the window."""
         return {"Skill/backflip_success_rate": self.success_rate()}
-
-    def state_dict(self) -> dict[str, Any]:
-        """The window."""
-        return self.window.state_dict()
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the window."""
-        self.window.load_state_dict(state)

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from rl.envs.components import Command, CommandColumns
 from rl.envs.state import EnvState
-from rl.tasks.components import Command, CommandColumns
 from rl.tasks.dance.clips import BUILTIN_CLIP, clip_library
 from rl.tasks.dance.terms import COMMAND_DIM, joint_error_mean_abs
 from robots import g1

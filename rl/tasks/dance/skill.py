@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import torch
 
+from rl.envs.components import SkillMeasure, WindowedSkill
 from rl.envs.state import EnvState
-from rl.tasks.components import EpisodeWindow, SkillMeasure
 from rl.tasks.dance.terms import joint_error_mean_abs
 
 
@@ -34,27 +33,21 @@ class TrackingSkillConfig:
         return TrackingSkill(self, max_episode_length)
 
 
-class TrackingSkill(SkillMeasure):
+class TrackingSkill(WindowedSkill):
     """Moving window of episode tracking errors (see :class:`TrackingSkillConfig`)."""
 
     log_key = "Skill/dance_joint_error_rad"  # the window's mean in the training log
 
     def __init__(self, cfg: TrackingSkillConfig, max_episode_length: int) -> None:
-        self.cfg = cfg
-        self.max_episode_length = max_episode_length
-        self.window = EpisodeWindow(cfg.window)
+        """An empty window of ``cfg.window`` episodes."""
+        super().__init__(cfg, cfg.window, max_episode_length)
 
-    def on_episodes_end(
-        self,
-        env_ids: torch.Tensor,
-        time_outs: torch.Tensor,
-        lived_steps: torch.Tensor,
-        state: EnvState,
-    ) -> None:
-        """Push the error of each counted finished episode."""
+    def episode_scores(
+        self, env_ids: torch.Tensor, time_outs: torch.Tensor, state: EnvState
+    ) -> torch.Tensor:
+        """The joint error of each episode's last step; a fall is charged ``fall_error_rad``."""
         err = self.joint_errors(state)[env_ids]
-        err = torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
-        self.window.push(err[self.counted(time_outs, lived_steps)])
+        return torch.where(time_outs, err, torch.full_like(err, self.cfg.fall_error_rad))
 
     def joint_errors(self, state: EnvState) -> torch.Tensor:
         """Mean absolute joint error of every env's last step (N,) [rad], against its command."""
@@ -72,11 +65,3 @@ class TrackingSkill(SkillMeasure):
     def log(self) -> dict[str, float]:
         """The window's mean episode-end joint error."""
         return {self.log_key: self.mean_error_rad()} if self.window.count else {}
-
-    def state_dict(self) -> dict[str, Any]:
-        """The window."""
-        return self.window.state_dict()
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the window."""
-        self.window.load_state_dict(state)

@@ -18,9 +18,10 @@ import dataclasses
 from pathlib import Path
 
 from rl.envs.assist import paper_bound_rows
+from rl.envs.components import SinglePhaseConfig
 from rl.envs.task_schema import InitialStateConfig, PushConfig, SkillTarget, TaskConfig
+from rl.envs.terms import RewardTerm, TerminationTerm
 from rl.tasks import rewards, terminations
-from rl.tasks.components import SinglePhaseConfig
 from rl.tasks.dance.clips import BUILTIN_CLIP
 from rl.tasks.dance.command import ClipTrackingConfig
 from rl.tasks.dance.evaluation import DanceEvaluationConfig
@@ -32,7 +33,6 @@ from rl.tasks.dance.terms import (
     track_joint_rms,
 )
 from rl.tasks.stand.task import STAND_OBSERVATIONS
-from rl.tasks.terms import RewardTerm, TerminationTerm
 
 
 def dance_task(clips: tuple[str | Path, ...] = (BUILTIN_CLIP,)) -> TaskConfig:

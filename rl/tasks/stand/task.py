@@ -11,11 +11,11 @@ survived to the time-out, over a target of 0.9. The initial assist bound is the 
 from __future__ import annotations
 
 from rl.envs.assist import paper_bound_rows
+from rl.envs.components import SinglePhaseConfig, SurvivalSkillConfig
 from rl.envs.task_schema import ObservationsConfig, TaskConfig
+from rl.envs.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 from rl.tasks import observations as obs
 from rl.tasks import rewards, terminations
-from rl.tasks.components import SinglePhaseConfig, SurvivalSkillConfig
-from rl.tasks.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 
 # Deployment-like proprioception: what the G1's IMU and encoders give, with their noise.
 PROPRIOCEPTION = (

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from rl.envs.components import CommandColumns
 from rl.envs.state import EnvState
-from rl.tasks.components import CommandColumns
 from rl.tasks.dance.clips import BUILTIN_CLIP
 from rl.tasks.dance.command import ClipTrackingCommand
 from rl.tasks.track.library import motion_library

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import torch
 
+from rl.envs.components import PhaseMachine
 from rl.envs.state import EnvState
-from rl.tasks.components import PhaseMachine
 
 
 @dataclass(frozen=True)

@@ -18,12 +18,12 @@ from __future__ import annotations
 import dataclasses
 
 from rl.envs.assist import paper_bound_rows
+from rl.envs.components import SinglePhaseConfig
 from rl.envs.task_schema import InitialStateConfig, PushConfig, SceneConfig, SkillTarget, TaskConfig
+from rl.envs.terms import RewardTerm, TerminationTerm
 from rl.tasks import rewards
-from rl.tasks.components import SinglePhaseConfig
 from rl.tasks.dance.clips import BUILTIN_CLIP
 from rl.tasks.stand.task import STAND_OBSERVATIONS
-from rl.tasks.terms import RewardTerm, TerminationTerm
 from rl.tasks.track import terms
 from rl.tasks.track.command import MotionCommandConfig
 from rl.tasks.track.evaluation import TrackEvaluationConfig

@@ -8,8 +8,8 @@ from typing import Any
 
 import torch
 
+from rl.envs.components import Command, CommandColumns
 from rl.envs.state import EnvState
-from rl.tasks.components import Command, CommandColumns
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from typing import Any
 
 import torch
 
+from rl.envs.components import SkillMeasure
 from rl.envs.state import EnvState
-from rl.tasks.components import SkillMeasure
 from rl.tasks.terrain import Terrain, TerrainConfig
 
 WALK_TERRAIN = Terrain(TerrainConfig())

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 
 from rl.envs.assist import paper_bound_rows
+from rl.envs.components import SinglePhaseConfig, SurvivalSkillConfig
 from rl.envs.task_schema import (
     ObservationsConfig,
     PushConfig,
@@ -24,10 +25,9 @@ from rl.envs.task_schema import (
     SkillTarget,
     TaskConfig,
 )
+from rl.envs.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 from rl.tasks import rewards, terminations
-from rl.tasks.components import SinglePhaseConfig, SurvivalSkillConfig
 from rl.tasks.stand.task import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, STAND_OBSERVATIONS
-from rl.tasks.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
 from rl.tasks.walk import terms as walk_terms
 from rl.tasks.walk.command import VelocityCommandConfig
 from rl.tasks.walk.curriculum import WALK_TERRAIN, TerrainCurriculumConfig
