@@ -115,7 +115,8 @@ def seed_spread(env_steps: int) -> dict[str, Any] | None:
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400  # PPO iterations of each run; 400 x 128 envs x 24 steps = 1.23 M env steps (the baselines over seeds there: docs/results/track_learn/seed_spread.json), about 10-16 min for the whole demo on 2 cores (measured 14.7 min in a fresh clone beside a test run) [-]
+    iterations: int = 400
+    """PPO iterations of each run (400 x 128 envs x 24 steps = 1.23 M env steps) [-]"""
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
     evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]

@@ -46,9 +46,8 @@ class BackflipConfig:
         -2 * math.pi
     )  # total base pitch turn: -2 pi = backflip, 0 = vertical jump [rad]
     torque_scale: float = 1.0  # alpha: torque limits are alpha * effort limit [-]
-    held_joint_torque_fraction: float = (
-        0.8  # joints the TO does not move use this share of alpha [-]
-    )
+    held_joint_torque_fraction: float = 0.8
+    """joints the TO does not move use this share of alpha [-]"""
     max_stance_lean_rad: float = 0.35  # |base pitch| bound on the ground (from 0, or -2 pi) [rad]
     friction_coefficient: float = 0.7  # sole friction pyramid coefficient mu [-]
     max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]

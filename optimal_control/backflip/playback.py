@@ -44,17 +44,12 @@ from robots.standing import with_scaled_gains
 class PlaybackConfig:
     """Options of the MuJoCo playback."""
 
-    # multipliers of the G1 table PD gains Kp, Kd, one playback each (with and without w); the
-    # table gains cannot hold even the standing robot open loop (robots/standing.py)
-    gain_scales: tuple[float, ...] = (1.0, 3.0)
+    gain_scales: tuple[float, ...] = (1.0, 3.0)  # G1 table PD gain multipliers, one run each [-]
     settle_s: float = 1.0  # time simulated after the reference ends, holding the last pose [s]
     upright_cos: float = 0.9  # landed upright: pelvis z axis . world z at least this [-]
     min_pelvis_height_m: float = 0.55  # landed standing: pelvis at least this high [m]
     pitch_tol_rad: float = 0.5  # completed: total pitch within this of the turn [rad]
-    # time constant of every contact (solref[0]) in the playback model; MuJoCo's default 0.02 s
-    # lets the soles sink and rock under the ~1.5 kN push-off, the TO's contact is rigid; 2 steps
-    # (0.01 s) is the stiffest MuJoCo allows at its 5 ms step [s]
-    contact_timeconst_s: float = 0.01
+    contact_timeconst_s: float = 0.01  # time constant (solref[0]) of every contact [s]
 
     def __post_init__(self) -> None:
         """Reject NaN / inf values, naming the field and its flag."""

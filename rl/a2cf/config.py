@@ -108,20 +108,18 @@ class CurriculumConfig:
     epsilon: float = 0.5  # tolerance band on |F|/|eta| before the bound moves [-]
     delta: float = 0.2  # relative bound change per update [-]
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
-    less_assist_progress: float = (
-        0.8  # helped skill progress that switches on the less-assist reward [-]
-    )
-    skill_learned_progress: float = 0.6  # progress of skill_measure at which the skill counts as learned: the decay weans the helped skill from 0.6 of its target (the paper: 1.0, never reached in our runs) [-]
-    skill_measure: str = "helped"  # whose skill triggers the skill-learned decay: "helped" (the helped envs' training episodes, the paper's), "evaluation" (the last evaluation of the motion policy alone, its target progress) or "alone" (the alone envs' training episodes) [-]
-    alone_share: float = (
-        0.25  # share of the envs that never get help (fixed env ids); 0: the paper [-]
-    )
+    less_assist_progress: float = 0.8
+    """helped skill progress that switches on the less-assist reward [-]"""
+    skill_learned_progress: float = 0.6
+    """progress of skill_measure at which the skill counts as learned (the paper: 1.0) [-]"""
+    skill_measure: str = "helped"  # whose skill triggers the decay: "helped" (the paper's), "evaluation" or "alone" [-]
+    alone_share: float = 0.25
+    """share of the envs that never get help (fixed env ids); 0: the paper [-]"""
     alone_window: int = 64  # finished episodes in the alone envs' skill window [-]
-    force_measure: str = "none"  # |F_k| of the force rule: "none" (no force rule: the bound moves by the skill-learned decay only), "mean" (the paper) or "quantile" (force_quantile of |F|/|eta|, for as-needed helpers such as a warm start) [-]
-    force_quantile: float = (
-        0.9  # quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]
-    )
-    anneal_iterations: int = 200  # N > 0: a fixed schedule caps the bound at eta0 (1 - k / N) after update k, so the help is gone (assistance off) after N iterations whatever the rules above say (not the paper's; 200 measured on stand and dance at 128 envs: docs/training.md); 0: off (the paper) [-]
+    force_measure: str = "none"  # |F_k| of the force rule: "none" (skill decay only), "mean" (the paper), "quantile" [-]
+    force_quantile: float = 0.9
+    """quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]"""
+    anneal_iterations: int = 200  # N > 0: cap the bound at eta0 (1 - k / N) after update k (help gone after N); 0: off, the paper [-]
     min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
 
     def __post_init__(self) -> None:
@@ -162,16 +160,14 @@ class CurriculumConfig:
 class WarmStartConfig:
     """DAgger rounds, regression and the head's initial std after the warm start."""
 
-    rounds: int = (
-        3  # DAgger rounds (round 0 applies the coach's wrench, later ones the student's) [-]
-    )
+    rounds: int = 3
+    """DAgger rounds (round 0 applies the coach's wrench, later ones the student's) [-]"""
     steps_per_round: int = 48  # env steps collected per round [-]
     epochs: int = 30  # passes over the dataset after each round [-]
     batch_size: int = 512  # regression mini-batch [-]
     learning_rate: float = 1e-3  # Adam learning rate of the assist head [-]
-    held_out: float = (
-        0.2  # share of the last round's samples kept out of the fit for the report [-]
-    )
+    held_out: float = 0.2
+    """share of the last round's samples kept out of the fit for the report [-]"""
     assist_std: float = 0.3  # std of the raw assist actions after the warm start (before tanh) [-]
     seed: int = 0  # shuffling seed [-]
 

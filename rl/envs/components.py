@@ -60,9 +60,8 @@ class CommandColumns:
     width: int  # number of columns of the block [-]
     unit: str  # unit of every column of the block, e.g. "m/s" [-]
     compute: str  # what the columns hold and how a robot produces them [-]
-    from_robot: bool = (
-        False  # the columns also read the robot's measured state (not the command alone) [-]
-    )
+    from_robot: bool = False
+    """the columns also read the robot's measured state (not the command alone) [-]"""
 
 
 class Command(Component, ABC):

@@ -27,16 +27,15 @@ may collect, :data:`rl.training.config.MAX_ROLLOUT_TRANSITIONS`) [-]."""
 class EnvConfig:
     """Sizes, timing, threads, seed and switches of a :class:`G1VecEnv`."""
 
-    num_envs: int = 128  # parallel G1 instances (128 learnt faster per env step than 512 on stand and dance, docs/results/skills_learn) [-]
+    num_envs: int = 128  # parallel G1 instances [-]
     decimation: int = 4  # physics steps per policy step (0.005 s x 4 = 50 Hz policy) [-]
     num_threads: int = 0  # physics threads of the rollout pool; 0 = all cores [-]
     seed: int = 0  # seed of the env's random generator (and of the run's torch/numpy) [-]
     history_length: int = 5  # policy observations kept in the "history" group (H) [-]
     clip_actions: float = 100.0  # actions are clipped to +- this before use [-]
     noise: bool = True  # add the observation terms' noise to the noisy groups
-    max_abs_qvel: float = (
-        200.0  # divergence guard: rows with a larger |qvel| entry are reset [m/s, rad/s]
-    )
+    max_abs_qvel: float = 200.0
+    """divergence guard: rows with a larger |qvel| entry are reset [m/s, rad/s]"""
     backend: str = "mujoco"  # physics: mujoco (MuJoCo C, CPU) or warp (MuJoCo Warp, gpu extra)
     device: str = "cpu"  # device of the physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
 

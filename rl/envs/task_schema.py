@@ -165,9 +165,8 @@ class TaskConfig:
     # Joint PD targets around the command's reference joints (q_ref + scale a), not around the
     # standing pose: zero action follows the reference (a tracking task's command must give it).
     actions_around_reference: bool = False
-    evaluation: Any = (
-        None  # task-specific eval config (build(env) -> evaluator); None: generic eval
-    )
+    evaluation: Any = None
+    """task-specific eval config (build(env) -> evaluator); None: generic eval"""
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
     # The task's own PPO update, used where the run gives none (--ppo-gamma, ...):
     discount: float = 0.99  # PPO's discount per control step [-]

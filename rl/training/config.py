@@ -27,22 +27,21 @@ class PPOConfig:
     """rsl-rl PPO hyper-parameters (rsl-rl / legged-gym defaults)."""
 
     learning_rate: float = 1e-3  # initial Adam learning rate (adaptive schedule) [-]
-    num_learning_epochs: int | None = (
-        None  # passes over each rollout; None: the task's (TaskConfig.learning_epochs, 5 unless the task says) [-]
-    )
+    num_learning_epochs: int | None = None
+    """passes over each rollout; None: the task's (TaskConfig.learning_epochs, 5 unless the task says) [-]"""
     num_mini_batches: int = 4  # mini-batches per pass [-]
     clip_param: float = 0.2  # PPO ratio clip [-]
-    gamma: float | None = (
-        None  # discount per control step; None: the task's (TaskConfig.discount) [-]
-    )
+    gamma: float | None = None
+    """discount per control step; None: the task's (TaskConfig.discount) [-]"""
     lam: float = 0.95  # GAE lambda [-]
     value_loss_coef: float = 1.0  # weight of the value loss [-]
     entropy_coef: float = 0.005  # weight of the entropy bonus [-]
     max_grad_norm: float = 1.0  # gradient-norm clip [-]
     desired_kl: float = 0.01  # target KL of the adaptive learning-rate schedule [-]
     init_noise_std: float = 0.5  # initial std of the motion actions (raw action units) [-]
-    kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" (the motion actions') or "all" (the joint action, rsl-rl's; the warm-started assist head then held the dance learning rate 3.4x lower) [-]
-    assist_init_noise_std: float = 0.3  # initial std of the raw assist actions (before tanh); the paper's 1.0 is a random push of ~0.6 of the bound redrawn every step [-]
+    kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" actions' or "all" (rsl-rl's) [-]
+    assist_init_noise_std: float = 0.3
+    """initial std of the raw assist actions, before tanh (the paper: 1.0) [-]"""
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared (a saved config is checked on load too)."""
@@ -75,9 +74,8 @@ class ModelConfig:
     vae_learning_rate: float = 1e-3  # Adam learning rate of the history encoder [-]
     vae_kl_weight: float = 1e-3  # beta of the beta-VAE [-]
     vae_velocity_weight: float = 1.0  # weight of the velocity-estimation loss [-]
-    vae_learning_epochs: int | None = (
-        None  # encoder-update passes over each rollout; 0 = PPO's epochs; None: the task's (TaskConfig.vae_learning_epochs) [-]
-    )
+    vae_learning_epochs: int | None = None
+    """encoder-update passes over each rollout; 0 = PPO's epochs; None: the task's (TaskConfig.vae_learning_epochs) [-]"""
 
     def __post_init__(self) -> None:
         """Bound every numeric field where it is declared."""
@@ -104,12 +102,10 @@ class TrainConfig:
     out: str = "runs"  # parent folder of new run folders [-]
     run_name: str = ""  # run folder name; empty: <task>_<mode>_<UTC time> [-]
     resume: str = ""  # run folder to continue from its last checkpoint; empty: new run [-]
-    save_interval: int = (
-        50  # iterations between kept checkpoints model_<it>.pt (last.pt: every iteration) [-]
-    )
-    random_mask_prob: float = (
-        DEFAULT_RANDOM_MASK_PROB  # zeta, probability of dropping a wrench component [-]
-    )
+    save_interval: int = 50
+    """iterations between kept checkpoints model_<it>.pt (last.pt: every iteration) [-]"""
+    random_mask_prob: float = DEFAULT_RANDOM_MASK_PROB
+    """zeta, probability of dropping a wrench component [-]"""
     device: str = "cpu"  # torch device of the learner [-]
     torch_threads: int = 1  # torch intra-op threads (1: measured best on 2 shared cores, see bench train); 0: torch's default [-]
     export_onnx: bool = True  # export the motion policy to ONNX at the end [-]
