@@ -196,8 +196,14 @@ def test_a_contact_pool_overflow_is_an_error_naming_the_sizes() -> None:
             tiny.step()
         message = str(raised.value)
         assert "naconmax = 4 (2 per world x 2 worlds)" in message, message
-        assert "NCONMAX_PER_WORLD" in message and "nconmax_per_world" in message, message
+        assert "--env-warp-nconmax-per-world" in message and "now 2" in message, message
         assert tiny.diverged_total == 0  # raised, not reset
+        sized = make_env(quiet(STAND), 2, backend="warp", device=WARP_DEVICE,
+                         warp_nconmax_per_world=64, warp_njmax_per_world=320)  # fmt: skip
+        try:  # the env config's flags size the pool
+            assert (sized.physics.d.naconmax, sized.physics.d.njmax) == (128, 320)
+        finally:
+            sized.close()
         tiny.close()
     finally:
         env.close()

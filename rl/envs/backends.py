@@ -18,6 +18,10 @@ def make_physics(cfg: Any, model: mujoco.MjModel, models: list) -> Any:
     if cfg.backend == "warp":
         from rl.envs.warp_physics import WarpPhysics  # the gpu extra, imported where used
 
-        return WarpPhysics(model, models, cfg.decimation, cfg.max_abs_qvel, cfg.device)
+        return WarpPhysics(
+            model, models, cfg.decimation, cfg.max_abs_qvel, cfg.device,
+            nconmax_per_world=cfg.warp_nconmax_per_world,
+            njmax_per_world=cfg.warp_njmax_per_world,
+        )  # fmt: skip
     threads = cfg.num_threads or os.cpu_count() or 1
     return MujocoRolloutPhysics(model, models, cfg.decimation, threads, cfg.max_abs_qvel)

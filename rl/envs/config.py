@@ -18,6 +18,14 @@ BACKENDS = ("mujoco", "warp")
 """Physics backends of :class:`rl.envs.G1VecEnv`: :mod:`rl.envs.physics` (MuJoCo C) and
 :mod:`rl.envs.warp_physics` (MuJoCo Warp)."""
 
+NCONMAX_PER_WORLD = 48
+"""Contacts allocated per world by MuJoCo Warp [-] (one pool of ``48 * N`` shared by all worlds;
+mujoco_warp's own G1 benchmark size; a standing G1 has 8 sole contacts, a fallen one about 20-30).
+Overflowing the pool is a :class:`rl.envs.warp_physics.ContactPoolOverflowError`."""
+NJMAX_PER_WORLD = 300
+"""Constraint rows per world in MuJoCo Warp, a hard limit [-] (mjlab's flat G1; pyramidal
+contacts take 4 rows each, plus joint limits). Oversizing costs: buffers scale with it."""
+
 MAX_NUM_ENVS = 2**24
 """Most envs one :class:`rl.envs.G1VecEnv` may hold (the most transitions one training iteration
 may collect, :data:`rl.training.config.MAX_ROLLOUT_TRANSITIONS`) [-]."""
@@ -38,6 +46,8 @@ class EnvConfig:
     """divergence guard: rows with a larger |qvel| entry are reset [m/s, rad/s]"""
     backend: str = "mujoco"  # physics: mujoco (MuJoCo C, CPU) or warp (MuJoCo Warp, gpu extra)
     device: str = "cpu"  # device of the physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
+    warp_nconmax_per_world: int = NCONMAX_PER_WORLD  # warp: contacts per world in the pool [-]
+    warp_njmax_per_world: int = NJMAX_PER_WORLD  # warp: constraint rows per world [-]
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared; ``--env-*`` are its flags."""
@@ -48,6 +58,8 @@ class EnvConfig:
         check_range(self.history_length, "--env-history-length", 1, 1000)
         check_range(self.clip_actions, "--env-clip-actions", 0.0, low_open=True)
         check_range(self.max_abs_qvel, "--env-max-abs-qvel", 0.0, low_open=True)
+        check_range(self.warp_nconmax_per_world, "--env-warp-nconmax-per-world", 1, 100_000)
+        check_range(self.warp_njmax_per_world, "--env-warp-njmax-per-world", 1, 1_000_000)
         if self.backend not in BACKENDS:
             raise ValueError(
                 f"EnvConfig.backend must be one of {BACKENDS}, got '{self.backend}' (--env-backend)."

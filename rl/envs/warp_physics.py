@@ -31,18 +31,12 @@ import mujoco
 import numpy as np
 import torch
 
+from rl.envs.config import NCONMAX_PER_WORLD, NJMAX_PER_WORLD
 from rl.envs.model import model_layout
 from rl.envs.physics import robot_fields
 from rl.envs.randomization import MODEL_FIELDS
 from robots import g1
 
-NCONMAX_PER_WORLD = 48
-"""Contacts allocated per world [-] (one pool of ``48 * N`` shared by all worlds; mujoco_warp's
-own G1 benchmark size; a standing G1 has 8 sole contacts, a fallen one about 20-30). Overflowing
-the pool is a :class:`ContactPoolOverflowError`; ``WarpPhysics(nconmax_per_world=...)`` sizes it."""
-NJMAX_PER_WORLD = 300
-"""Constraint rows per world, a hard limit [-] (mjlab's flat G1; pyramidal contacts take 4 rows
-each, plus joint limits). Oversizing costs: buffers scale with it."""
 DERIVED_FIELDS = ("body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_acc0")
 """Model fields ``mjw.set_const`` derives from mass and CoM: per world whenever masses are."""
 GPU_EXTRA_HINT = "install the gpu extra: pip install 'a2cf-mb[gpu]' (or -e '.[gpu]' in a checkout)"
@@ -96,9 +90,9 @@ def _contact_pool_message(ncollision: int, nacon: int, naconmax: int, nworld: in
         f"MuJoCo Warp's contact pool overflowed: a step asked for {ncollision} broadphase pairs "
         f"and {nacon} contacts, the pool holds naconmax = {naconmax} ({per_world} per world x "
         f"{nworld} worlds), so every world's step is wrong. Raise the contacts per world to at "
-        f"least {need} (what this step asked for; leave room for more): NCONMAX_PER_WORLD in "
-        f"rl/envs/warp_physics.py (now {NCONMAX_PER_WORLD}; G1VecEnv sizes its pool with it) or "
-        f"WarpPhysics(nconmax_per_world=N). Fewer envs do not help: the pool is sized per world."
+        f"least {need} (what this step asked for; leave room for more) with "
+        f"--env-warp-nconmax-per-world N (EnvConfig.warp_nconmax_per_world, now {per_world}). "
+        "Fewer envs do not help: the pool is sized per world."
     )
 
 
