@@ -162,3 +162,28 @@ def test_old_checkpoints_are_refused_with_a_clear_message(tmp_path) -> None:
     with pytest.raises(ValueError, match="older layout"):
         make_runner(tmp_path, total=1)[1].load_checkpoint(path)
     assert dataclasses.asdict(CFG)["num_steps_per_env"] == STEPS
+
+
+def test_a_checkpoint_of_format_3_is_migrated_or_refused() -> None:
+    """Format 3 held Algorithm 1 inside the env's assist part (and a second copy beside it);
+    format 4 holds it once, under ``a2cf``. One saved inside a rollout cannot be continued."""
+    import pytest
+
+    from rl.training.runner import migrate_checkpoint
+
+    event = {"curriculum": {"eta": ETA0}, "iteration": 7, "step_in_iteration": 0,
+             "skill_sum": 0.0, "alone_sum": 0.0, "stats": {"steps": 0}, "history": [{"k": 1}]}  # fmt: skip
+    old = {"format": 3, "curriculum": {"eta": ETA0}, "env": {"assist": {"bound": ETA0,
+           "curriculum_event": event}}}  # fmt: skip
+    new = migrate_checkpoint(old)
+    assert new["format"] == 4 and "curriculum" not in new
+    assert "curriculum_event" not in new["env"]["assist"]
+    assert new["a2cf"]["iteration"] == 7 and new["a2cf"]["steps"] == 0
+    assert new["a2cf"]["history"] == [{"k": 1}]
+    inside = {
+        "format": 3,
+        "env": {"assist": {"curriculum_event": {**event, "step_in_iteration": 2}}},
+    }
+    with pytest.raises(ValueError, match="inside a rollout"):
+        migrate_checkpoint(inside)
+    assert migrate_checkpoint({"format": 4, "x": 1}) == {"format": 4, "x": 1}
