@@ -14,6 +14,7 @@ from tensordict import TensorDict
 from rl.a2cf.curriculum import RATIO_BINS, AssistCurriculum
 from rl.a2cf.modes import EnvView
 from rl.envs.assist import WRENCH_AXES
+from rl.envs.declared_state import DeclaredState
 
 
 class AssistStatistics:
@@ -118,7 +119,7 @@ def _all_reduce_sum(values: torch.Tensor) -> torch.Tensor:
     return values
 
 
-class Algorithm1:
+class Algorithm1(DeclaredState):
     """Algorithm 1 of the paper, one update per training iteration.
 
     :meth:`record` takes every env step of the rollout (the helped envs' ``extras["assist"]``
@@ -126,6 +127,11 @@ class Algorithm1:
     iteration after PPO's update, updates the bounds from the rollout's statistics (summed over
     the processes of a ``torchrun`` job first, so every process moves its bounds identically).
     """
+
+    state_attributes = (
+        "curriculum", "iteration", "steps", "skill_sum", "alone_sum", "stats", "history"
+    )  # fmt: skip
+    """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
 
     def __init__(self, curriculum: AssistCurriculum, iteration: int = 0) -> None:
         """Count iterations from ``iteration`` (the first one not done yet)."""
@@ -210,28 +216,6 @@ class Algorithm1:
         self.steps = 0
         self.skill_sum = self.alone_sum = 0.0
         return row
-
-    def state_dict(self) -> dict[str, Any]:
-        """Curriculum, counters, running sums and the update history."""
-        return {
-            "curriculum": self.curriculum.state_dict(),
-            "iteration": self.iteration,
-            "steps": self.steps,
-            "skill_sum": self.skill_sum,
-            "alone_sum": self.alone_sum,
-            "stats": self.stats.state_dict(),
-            "history": list(self.history),
-        }
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output."""
-        self.curriculum.load_state_dict(state["curriculum"])
-        self.iteration = int(state["iteration"])
-        self.steps = int(state["steps"])
-        self.skill_sum = float(state["skill_sum"])
-        self.alone_sum = float(state["alone_sum"])
-        self.stats.load_state_dict(state["stats"])
-        self.history = list(state["history"])
 
 
 def curriculum_log(row: dict[str, Any], phase_names: tuple[str, ...]) -> dict[str, float]:

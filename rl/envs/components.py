@@ -14,11 +14,14 @@ from typing import Any
 import numpy as np
 import torch
 
+from rl.envs.declared_state import DeclaredState
 from rl.envs.state import EnvState
 
 
-class Component:  # noqa: B024 - a base of optional hooks; subclasses add the abstract ones
-    """Hooks shared by every stateful task part; all optional except what subclasses declare."""
+class Component(DeclaredState):  # noqa: B024 - optional hooks; subclasses add the abstract ones
+    """Hooks shared by every stateful task part; all optional except what subclasses declare. Its
+    state is what it declares in ``state_attributes`` (none here) unless it writes its own
+    ``state_dict`` / ``load_state_dict``."""
 
     def reset(self, env_ids: torch.Tensor) -> None:  # noqa: B027 - optional hook
         """Re-initialise the per-env state of ``env_ids`` (M,) (they start a new episode)."""
@@ -41,13 +44,6 @@ class Component:  # noqa: B024 - a base of optional hooks; subclasses add the ab
     def log(self) -> dict[str, float]:
         """Scalars to log this step (e.g. ``Curriculum/terrain_level``); averaged per iteration."""
         return {}
-
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue exactly after a resume (tensors are cloned)."""
-        return {}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:  # noqa: B027 - optional hook
-        """Restore :meth:`state_dict` output."""
 
 
 # ------------------------------------------------------------------------------------ commands

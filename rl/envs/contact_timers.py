@@ -3,18 +3,27 @@ acceleration over the last policy step (the env's contact-timer part)."""
 
 from __future__ import annotations
 
-from typing import Any
-
 import torch
 
+from rl.envs.declared_state import DeclaredState
 from rl.envs.state import FOOT_CONTACT_THRESHOLD_N
 from robots import g1
 
 
-class ContactTimers:
+class ContactTimers(DeclaredState):
     """Foot timers (N, 2) [s] with Isaac Lab's contact-sensor semantics (``first_contact`` when a
     foot lands after a swing, ``last_air_time_s`` the length of that swing) and the joint
     acceleration (N, 29) [rad/s^2] from the joint rates of two consecutive steps."""
+
+    state_attributes = (
+        "last_joint_vel",
+        "joint_acc",
+        "foot_air_time_s",
+        "foot_contact_time_s",
+        "foot_last_air_time_s",
+        "foot_first_contact",
+    )
+    """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
 
     def __init__(self, num_envs: int, step_dt_s: float, device: torch.device | str = "cpu") -> None:
         """All timers at 0, no foot just landed; every buffer lives on ``device``."""
@@ -58,19 +67,3 @@ class ContactTimers:
             "foot_last_air_time_s": self.foot_last_air_time_s,
             "foot_first_contact": self.foot_first_contact,
         }
-
-    def state_dict(self) -> dict[str, Any]:
-        """Every buffer (cloned)."""
-        return {
-            "last_joint_vel": self.last_joint_vel.clone(),
-            "joint_acc": self.joint_acc.clone(),
-            "foot_air_time_s": self.foot_air_time_s.clone(),
-            "foot_contact_time_s": self.foot_contact_time_s.clone(),
-            "foot_last_air_time_s": self.foot_last_air_time_s.clone(),
-            "foot_first_contact": self.foot_first_contact.clone(),
-        }
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` output (onto this part's device)."""
-        for name, value in state.items():
-            setattr(self, name, value.to(self.device, copy=True))

@@ -3,18 +3,20 @@ or around a reference pose the caller gives each step (the env's motion-action p
 
 from __future__ import annotations
 
-from typing import Any
-
 import torch
 
+from rl.envs.declared_state import DeclaredState
 from robots import g1
 
 
-class MotionAction:
+class MotionAction(DeclaredState):
     """actions[:, :29] = a (N, 29) [-]: joint PD targets ``base + ACTION_SCALE_RAD * a`` [rad], with
     ``base`` the standing pose or the (N, 29) pose given with the action (a tracking task's
     reference joints); the action of this step and of the previous one (what observations and
     rewards read)."""
+
+    state_attributes = ("action", "last_action")
+    """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
 
     def __init__(self, num_envs: int, device: torch.device | str = "cpu") -> None:
         """Both actions start at 0 (the standing pose); every tensor lives on ``device``."""
@@ -46,15 +48,6 @@ class MotionAction:
         """Zero both actions of ``env_ids`` (M,)."""
         self.action[env_ids] = 0.0
         self.last_action[env_ids] = 0.0
-
-    def state_dict(self) -> dict[str, Any]:
-        """Both actions."""
-        return {"action": self.action.clone(), "last_action": self.last_action.clone()}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore both actions (onto this part's device)."""
-        self.action = state["action"].to(self.device, copy=True)
-        self.last_action = state["last_action"].to(self.device, copy=True)
 
 
 def checked_actions(

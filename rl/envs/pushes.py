@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import torch
+
+from rl.envs.declared_state import DeclaredState
 
 if TYPE_CHECKING:
     from rl.envs.physics import Physics
     from rl.envs.task_schema import PushConfig
 
 
-class Pushes:
+class Pushes(DeclaredState):
     """Per-env push timers (N,) [s]; an env whose timer runs out gets a uniform horizontal kick of
     at most ``velocity_xy_mps`` per axis and a new interval from ``interval_range_s``."""
+
+    state_attributes = ("timer_s",)
+    """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
 
     def __init__(
         self,
@@ -51,11 +56,3 @@ class Pushes:
     def _interval(self, num: int) -> torch.Tensor:
         low, high = self.cfg.interval_range_s
         return low + (high - low) * torch.rand(num, generator=self.generator, device=self.device)
-
-    def state_dict(self) -> dict[str, Any]:
-        """The timers."""
-        return {"timer_s": self.timer_s.clone()}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the timers."""
-        self.timer_s = state["timer_s"].to(self.device, copy=True)

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import torch
 
+from rl.envs.declared_state import DeclaredState
 from rl.envs.state import quat_multiply
 from robots import g1
 
@@ -18,10 +19,13 @@ if TYPE_CHECKING:
     from rl.envs.task_schema import InitialStateConfig
 
 
-class ResetEvents:
+class ResetEvents(DeclaredState):
     """Initial states around the standing keyframe, and per env the policy steps of its episode
     (``episode_length_buf`` (N,), which runners may overwrite to spread time-outs) and since its
     actual reset (``lived_steps`` (N,))."""
+
+    state_attributes = ("episode_length_buf", "lived_steps")
+    """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
 
     def __init__(
         self,
@@ -77,15 +81,3 @@ class ResetEvents:
     def time_outs(self, terminated: torch.Tensor) -> torch.Tensor:
         """(N,) bool: episodes at their length that did not fail (``terminated`` (N,))."""
         return (self.episode_length_buf >= self.max_episode_length) & ~terminated
-
-    def state_dict(self) -> dict[str, Any]:
-        """The counters."""
-        return {
-            "episode_length_buf": self.episode_length_buf.clone(),
-            "lived_steps": self.lived_steps.clone(),
-        }
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore the counters (onto this part's device)."""
-        self.episode_length_buf = state["episode_length_buf"].to(self.device, copy=True)
-        self.lived_steps = state["lived_steps"].to(self.device, copy=True)
