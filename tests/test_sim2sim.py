@@ -159,7 +159,9 @@ def test_eval_sim2sim_of_a_walk_flat_run_follows_the_velocity_command(tmp_path) 
     # the training env would (same seed, same schedule).
     task = dataclasses.replace(
         WALK_FLAT,
-        commands=dataclasses.replace(WALK_FLAT.commands, resampling_time_range_s=(0.1, 0.3)),
+        commands=dataclasses.replace(
+            WALK_FLAT.commands, resampling_time_range_s=(0.1, 0.3), curriculum_initial_scale=0.3
+        ),
     )
     n, seed = 3, 7
     seen: list[np.ndarray] = []

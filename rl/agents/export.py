@@ -41,6 +41,11 @@ OBSERVATION_TERM_DOCS: dict[str, tuple[str, str]] = {
     "joint_pos": ("rad", "joint angles minus default_pos_rad, in the joint order below"),
     "joint_vel": ("rad/s", "joint velocities, in the joint order below"),
     "last_action": ("-", "the policy's previous output `actions` (zeros at start)"),
+    "base_lin_vel": (
+        "m/s",
+        "pelvis linear velocity in the pelvis frame (a state estimator's output; trained with "
+        "uniform noise of the term's half-width)",
+    ),
     "command": (
         "see parts",
         "the task command: `parts` says what each block of its columns holds and how to produce "

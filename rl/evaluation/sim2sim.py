@@ -89,11 +89,13 @@ def build_sim2sim_model(cfg: Sim2SimConfig) -> mujoco.MjModel:
 
 
 def bundle_observation(
-    bundle: dict, gyro, quat_wxyz, q, qdot, last_action, command=None
+    bundle: dict, gyro, quat_wxyz, q, qdot, last_action, command=None, base_lin_vel_b=None
 ) -> np.ndarray:
     """One robot's policy observation from raw signals, as the bundle describes it; ``command``
     (C,) is the task command (what a robot's joystick, gait clock or clip player produces, see the
-    command term's ``parts``), needed when the bundle has a command term."""
+    command term's ``parts``), needed when the bundle has a command term; ``base_lin_vel_b`` (3,)
+    [m/s] the pelvis velocity in the pelvis frame (a state estimator's output on a robot), needed
+    when the bundle has a ``base_lin_vel`` term."""
     w, x, y, z = quat_wxyz
     gravity_b = (
         np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]) * -1.0
@@ -106,6 +108,7 @@ def bundle_observation(
         "joint_vel": qdot,
         "last_action": last_action,
         "command": command,
+        "base_lin_vel": base_lin_vel_b,
     }
     obs = np.zeros(bundle["observation"]["width"])
     for term in bundle["observation"]["terms"]:
@@ -113,11 +116,19 @@ def bundle_observation(
             raise ValueError(f"sim2sim cannot compute observation term '{term['name']}' yet")
         start, stop = term["columns"]
         if signals[term["name"]] is None:
+            signal = "command" if term["name"] == "command" else "base_lin_vel_b"
             raise ValueError(
-                f"the policy reads a task command (columns {start}:{stop}): pass `command`"
+                f"the policy reads '{term['name']}' (columns {start}:{stop}): pass `{signal}`"
             )
         obs[start:stop] = term["scale"] * signals[term["name"]]
     return obs
+
+
+def _lin_vel_b(data: mujoco.MjData) -> np.ndarray:
+    """The free joint's linear velocity (world frame in ``qvel``) in the pelvis frame (3,) [m/s]."""
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, data.qpos[3:7])
+    return rot.reshape(3, 3).T @ data.qvel[:3]
 
 
 class TaskLogic:
@@ -428,7 +439,7 @@ def run_sim2sim(
         command = logic.command.numpy()
         obs = np.stack([
             bundle_observation(bundle, d.qvel[3:6], d.qpos[3:7], d.qpos[7:], d.qvel[6:],
-                               last_action[i], command[i])
+                               last_action[i], command[i], _lin_vel_b(d))
             for i, d in enumerate(datas)
         ])  # fmt: skip
         if on_step is not None:
