@@ -245,10 +245,11 @@ def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
     summary = OracleArtifact.read_summary(folder)
     eta0 = torch.tensor(summary.eta0, dtype=torch.float32)
     # a tracking task on the artifact's own motion takes it, whatever the artifact was solved as
-    if not _tracks_the_artifacts_motion(folder, task) and summary.task != task.name:
+    takes = (task.name, *task.oracle_tasks)
+    if not _tracks_the_artifacts_motion(folder, task) and summary.task not in takes:
         raise ValueError(
             f"--warmstart artifact {folder} is for task '{summary.task}', the training "
-            f"task is '{task.name}': solve the oracle for '{task.name}'"
+            f"task '{task.name}' takes artifacts of {list(takes)}: solve the oracle for one of them"
         )
     if summary.phase_names == task.phase_names:
         return eta0

@@ -162,6 +162,10 @@ class TaskConfig:
     )  # phase machine config (has names, build)
     skill: Any = field(default_factory=SurvivalSkillConfig)  # skill-progress config (has build)
     less_assist_weight: float = 1.0  # weight of the less-assist reward once switched on [-]
+    oracle_tasks: tuple[str, ...] = field(
+        default=(),
+        metadata={"help": "other tasks whose solve-* artifacts warm-start this one [-]"},
+    )
     # Joint PD targets around the command's reference joints (q_ref + scale a), not around the
     # standing pose: zero action follows the reference (a tracking task's command must give it).
     actions_around_reference: bool = False

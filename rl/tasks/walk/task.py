@@ -153,6 +153,7 @@ WALK_FLAT = TaskConfig(
     phases=SinglePhaseConfig(names=("walk",)),
     skill=SurvivalSkillConfig(target_survival=0.9),
     less_assist_weight=2.0,
+    oracle_tasks=("walk",),  # solve-walk's gait is on flat ground
     evaluation=WalkEvaluationConfig(),
     target=SkillTarget(min_survival=0.9, metric="lin_vel_error_mps", max_metric=0.25),
 )
