@@ -296,3 +296,45 @@ def test_walk_eval_and_compare(walk_runs, tmp_path) -> None:
     assert rows["a2cf"]["eval_lin_vel_error_mps"] == result["task_metrics"]["lin_vel_error_mps"]
     assert rows["baseline"]["to_negligible_force"] is None
     assert 0.0 <= rows["a2cf"]["final_raw_track_lin_vel_xy"] <= 1.0
+
+
+# ------------------------------------------------------------------------------ per command
+def test_scripted_commands_and_the_standing_still_bar(tmp_path) -> None:
+    """A scripted sequence drives every env by its episode time; the per-command table holds
+    one row per segment, and a robot that holds its pose scores about the standing-still bar
+    (the error it would make by not moving), so the table fails a robot that does not walk."""
+    from rl.envs.task_schema import quiet
+    from rl.tasks.registry import make_env
+    from rl.tasks.walk.command import CommandSegment
+    from rl.tasks.walk.evaluation import COMMAND_KINDS, WalkEvaluationConfig, command_kind
+
+    script = (
+        CommandSegment("forward", 0.2, (0.8, 0.0, 0.0)),
+        CommandSegment("turn", 0.2, (0.0, 0.0, 0.8)),
+        CommandSegment("stop", 0.2, (0.0, 0.0, 0.0)),
+    )
+    env = make_env(quiet(WALK_FLAT), 3, num_threads=1)
+    evaluator = WalkEvaluationConfig(command_script=script).build(env)
+    active = torch.ones(3, dtype=torch.bool)
+    seen = []
+    for _ in range(40):  # 0.8 s: the last segment is held
+        _, _, dones, extras = env.step(torch.zeros(3, env.num_actions))
+        seen.append(env.env_state.command[:, :3].clone())
+        evaluator.on_step(env, active, dones, extras)
+        active &= ~dones.bool()
+    assert torch.allclose(seen[2][0], torch.tensor([0.8, 0.0, 0.0]))
+    assert torch.allclose(seen[14][1], torch.tensor([0.0, 0.0, 0.8]))
+    assert torch.allclose(seen[-1][2], torch.zeros(3))
+    result = evaluator.finish(tmp_path)
+    rows = {r["command"]: r for r in result["per_command"]}
+    assert list(rows) == ["forward", "turn", "stop"] and result["command_script"] == list(rows)
+    assert rows["forward"]["standing_still_lin_vel_error_mps"] == pytest.approx(0.8)
+    assert rows["turn"]["standing_still_yaw_rate_error_rps"] == pytest.approx(0.8)
+    assert rows["stop"]["standing_still_lin_vel_error_mps"] == 0.0
+    # a robot holding its pose makes about the standing-still error where it is told to walk
+    assert rows["forward"]["lin_vel_error_mps"] == pytest.approx(0.8, abs=0.2)
+    assert json.loads((tmp_path / "walk_eval.json").read_text())["per_command"][0]["steps"] > 0
+    # random draws are binned by what they mostly ask for
+    kinds = command_kind(torch.tensor([[0.0, 0, 0], [0.5, 0, 0], [-0.4, 0.1, 0], [0.1, 0.3, 0.2],
+                                       [0.2, 0.0, -0.9]]))  # fmt: skip
+    assert [COMMAND_KINDS[k] for k in kinds] == ["stop", "forward", "backward", "sideways", "turn"]

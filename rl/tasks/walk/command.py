@@ -64,6 +64,18 @@ class VelocityCommandConfig:
         return VelocityCommand(self, num_envs, generator)
 
 
+@dataclass(frozen=True)
+class CommandSegment:
+    """One leg of a scripted command sequence: a name, how long, and (vx, vy, yaw rate)."""
+
+    name: str
+    """what the segment asks for (a row of the per-command table) [-]"""
+    duration_s: float
+    """how long the segment lasts [s]"""
+    command: tuple[float, float, float]
+    """(vx [m/s], vy [m/s], yaw rate [rad/s]) in the pelvis frame"""
+
+
 class VelocityCommand(Command):
     """Per-env (vx, vy, yaw rate) with a countdown to the next draw, the gait clock and the
     command curriculum's scale; see the config."""
@@ -80,11 +92,34 @@ class VelocityCommand(Command):
         ranges = (cfg.lin_vel_x_range_mps, cfg.lin_vel_y_range_mps, cfg.ang_vel_z_range_rps)
         self._low = torch.tensor([r[0] for r in ranges], device=dev)
         self._high = torch.tensor([r[1] for r in ranges], device=dev)
+        self._script: tuple[torch.Tensor, torch.Tensor] | None = None  # (K,) ends [s], (K, 3)
+
+    def follow_script(self, segments: tuple[CommandSegment, ...]) -> None:
+        """From now on every env follows ``segments`` in order by its episode time (the last one
+        held), instead of random draws (an evaluation's scripted sequence; no draws are made)."""
+        if not segments:
+            raise ValueError("a command script needs at least one segment")
+        durations = torch.tensor([seg.duration_s for seg in segments], device=self.device)
+        commands = torch.tensor([seg.command for seg in segments], device=self.device)
+        self._script = (durations.cumsum(0), commands)
+        self._scripted()
+
+    def segment(self) -> torch.Tensor | None:
+        """(N,) long: the script segment each env is in (None without a script)."""
+        if self._script is None:
+            return None
+        ends = self._script[0]
+        return torch.searchsorted(ends, self.clock_s, right=True).clamp(max=len(ends) - 1)
+
+    def _scripted(self) -> None:
+        self.command[:, :3] = self._script[1][self.segment()]
 
     def resample(self, env_ids: torch.Tensor) -> None:
         """Draw new commands and countdowns for ``env_ids`` (M,) within the scaled ranges."""
         m, gen = env_ids.numel(), self.generator
-        if m == 0:
+        if (
+            m == 0 or self._script is not None
+        ):  # a script sets the commands by time (compute, reset)
             return
         low, high = self._low * self.scale, self._high * self.scale
         draw = low + (high - low) * torch.rand(m, 3, generator=gen, device=self.device)
@@ -99,6 +134,8 @@ class VelocityCommand(Command):
         """A new episode starts with a new command and the clock at 0."""
         self.resample(env_ids)
         self.clock_s[env_ids] = 0.0
+        if self._script is not None:
+            self._scripted()
         self._write_clock()
 
     def _write_clock(self) -> None:
@@ -119,6 +156,8 @@ class VelocityCommand(Command):
         self.time_left_s -= dt_s
         self.resample((self.time_left_s <= 0).nonzero().flatten())
         self.clock_s += dt_s
+        if self._script is not None:
+            self._scripted()
         self._write_clock()
         return self.command
 

@@ -1,5 +1,7 @@
 """Walk evaluation (``TaskConfig.evaluation`` of ``walk``): per terrain type and level, with
-assistance off, survival, linear and yaw velocity-tracking error, distance walked and the level.
+assistance off, survival, linear and yaw velocity-tracking error, distance walked and the level;
+per command (stop, forward, backward, sideways, turn; or the segments of a scripted sequence) the
+errors beside those a robot standing still would score on the same frames.
 
 :meth:`WalkEvaluationConfig.build` pins env i to a tile (column i mod num_cols, level
 ``levels[(i // num_cols) mod len(levels)]``) and re-places every robot; each env's first episode
@@ -16,16 +18,43 @@ from typing import Any
 import torch
 
 from optimal_control.files import atomic_savefig, atomic_write_json
+from rl.tasks.walk.command import CommandSegment
 
 EVAL_JSON = "walk_eval.json"
 EVAL_PLOT = "walk_eval.png"
 
+COMMAND_KINDS = ("stop", "forward", "backward", "sideways", "turn")
+"""Rows of the per-command table of random draws (:func:`command_kind`)."""
+
+DEMO_SCRIPT = (
+    CommandSegment("forward", 5.0, (0.8, 0.0, 0.0)),
+    CommandSegment("turn", 5.0, (0.0, 0.0, 0.8)),
+    CommandSegment("sideways", 5.0, (0.0, 0.3, 0.0)),
+    CommandSegment("stop", 5.0, (0.0, 0.0, 0.0)),
+)
+"""The scripted sequence of a walk video (``walk_script``): 5 s each, one 20 s episode."""
+
+
+def command_kind(command: torch.Tensor) -> torch.Tensor:
+    """(N,) index into :data:`COMMAND_KINDS` of commands (N, >= 3): stop below 0.1 m/s and
+    0.1 rad/s; else the largest of |vx| / 1 m/s, |vy| / 0.3 m/s, |yaw rate| / 1 rad/s."""
+    vx, vy, wz = command[:, 0], command[:, 1], command[:, 2]
+    share = torch.stack([vx.abs(), vy.abs() / 0.3, wz.abs()], dim=-1)
+    dominant = share.argmax(dim=-1)
+    kind = torch.where(dominant == 0, torch.where(vx >= 0, 1, 2), dominant + 2)
+    stop = (command[:, :2].norm(dim=-1) < 0.1) & (wz.abs() < 0.1)
+    return torch.where(stop, 0, kind)
+
 
 @dataclass(frozen=True)
 class WalkEvaluationConfig:
-    """Which terrain levels the walk evaluation places robots on."""
+    """Which terrain levels the walk evaluation places robots on, and an optional scripted
+    command sequence in place of the env's random draws."""
 
-    levels: tuple[int, ...] = (0, 3, 6, 9)  # terrain levels to test, cycled over env blocks [-]
+    levels: tuple[int, ...] = (0, 3, 6, 9)
+    """terrain levels to test, cycled over env blocks [-]"""
+    command_script: tuple[CommandSegment, ...] = ()
+    """every env follows these segments (e.g. DEMO_SCRIPT); empty: the env's random draws"""
 
     def build(self, env: Any) -> WalkEvaluator:
         """Pin the env's robots to evaluation tiles, re-place them, and return the evaluator."""
@@ -54,10 +83,18 @@ class WalkEvaluator:
         else:  # flat ground: one "flat" row at level 0
             self.tiles = torch.zeros(n, 2, dtype=torch.long)
             self.types = ["flat"] * n
+        self.script = cfg.command_script
+        if self.script:
+            env.command_gen.follow_script(self.script)
+        self.kinds = tuple(seg.name for seg in self.script) or COMMAND_KINDS
+        k = len(self.kinds)
+        # per command kind: lin. error, yaw error, standing still's two errors [m/s, rad/s], steps
+        self.kind_sums = torch.zeros(k, 5)
         env.reset_envs(torch.arange(n, device=env.device))
         self.start_xy_w = env.env_state.base_pos_w[:, :2].cpu().clone()
         self.lin_error_sum = torch.zeros(n)
         self.yaw_error_sum = torch.zeros(n)
+        self.still_error_sums = torch.zeros(n, 2)  # a robot standing still: |v_cmd|, |w_cmd|
         self.steps = torch.zeros(n)
         self.distance_m = torch.zeros(n)
         self.fell = torch.zeros(n, dtype=torch.bool)
@@ -67,14 +104,22 @@ class WalkEvaluator:
         s = env.env_state  # on the env's device: this step's figures are computed there
         lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
         yaw = (s.base_ang_vel_b[:, 2] - s.command[:, 2]).abs()
-        # this evaluator's buffers are on the host: only the (N, 4) figures cross, in one copy
-        figures = torch.stack([lin, yaw, s.base_pos_w[:, 0], s.base_pos_w[:, 1]], dim=-1).cpu()
-        lin, yaw, xy_w = figures[:, 0], figures[:, 1], figures[:, 2:]
+        segment = env.command_gen.segment() if self.script else None
+        kind = command_kind(s.command) if segment is None else segment
+        # this evaluator's buffers are on the host: only the (N, 7) figures cross, in one copy
+        figures = torch.stack(
+            [lin, yaw, s.command[:, :2].norm(dim=-1), s.command[:, 2].abs(), kind.float(),
+             s.base_pos_w[:, 0], s.base_pos_w[:, 1]], dim=-1,
+        ).cpu()  # fmt: skip
+        lin, yaw, xy_w = figures[:, 0], figures[:, 1], figures[:, 5:]
         done = dones.bool().cpu()
         alive = active & ~done  # the state of done envs is already their next episode's
         self.lin_error_sum += torch.where(alive, lin, 0.0)
         self.yaw_error_sum += torch.where(alive, yaw, 0.0)
         self.steps += alive.float()
+        self.still_error_sums += figures[:, 2:4] * alive[:, None]
+        row = torch.cat([figures[:, :4], torch.ones(len(lin), 1)], dim=-1) * alive[:, None]
+        self.kind_sums.index_add_(0, figures[:, 4].long(), row)
         dist = (xy_w - self.start_xy_w).norm(dim=-1)
         self.distance_m = torch.where(alive, dist, self.distance_m)
         self.fell |= active & done & ~extras["time_outs"].bool().cpu()
@@ -105,16 +150,42 @@ class WalkEvaluator:
             )
         return rows
 
+    def per_command(self) -> list[dict[str, Any]]:
+        """One row per command kind (or script segment) that some live step had: the mean
+        errors, and those of a robot standing still (|v_cmd|, |yaw rate_cmd|) on the same steps."""
+        rows = []
+        for name, sums in zip(self.kinds, self.kind_sums, strict=True):
+            steps = float(sums[4])
+            if steps == 0:
+                continue
+            rows.append(
+                {
+                    "command": name,
+                    "steps": int(steps),
+                    "lin_vel_error_mps": float(sums[0]) / steps,
+                    "yaw_rate_error_rps": float(sums[1]) / steps,
+                    "standing_still_lin_vel_error_mps": float(sums[2]) / steps,
+                    "standing_still_yaw_rate_error_rps": float(sums[3]) / steps,
+                }
+            )
+        return rows
+
     def finish(self, run_dir: str | Path) -> dict[str, Any]:
         """Write ``walk_eval.json`` and ``walk_eval.png`` into ``run_dir``; return the figures."""
         table = self.table()
         steps = self.steps.clamp_min(1)
+        still = self.still_error_sums / steps[:, None]
         result = {
             "survival": float((~self.fell).float().mean()),
             "lin_vel_error_mps": float((self.lin_error_sum / steps).mean()),
             "yaw_rate_error_rps": float((self.yaw_error_sum / steps).mean()),
             "distance_m": float(self.distance_m.mean()),
             "mean_level": float(self.tiles[:, 0].float().mean()),
+            # the same figures for a robot standing still on the same frames (the bar to beat)
+            "standing_still_lin_vel_error_mps": float(still[:, 0].mean()),
+            "standing_still_yaw_rate_error_rps": float(still[:, 1].mean()),
+            "command_script": [seg.name for seg in self.script],
+            "per_command": self.per_command(),
             "per_terrain_level": table,
         }
         run_dir = Path(run_dir)
