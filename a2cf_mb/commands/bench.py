@@ -17,6 +17,7 @@ BENCHMARK_MODULES: tuple[str, ...] = (
     "a2cf_mb.bench.learn",
     "a2cf_mb.bench.train",
     "a2cf_mb.bench.terrain",
+    "a2cf_mb.bench.physics",
 )
 
 
