@@ -151,3 +151,22 @@ def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curric
     if ppo.num_learning_epochs:
         cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, vae_learning_epochs=0))
     assert run_variant(with_task_defaults(cfg, resolve_task(cfg))) == name
+
+
+def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_path) -> None:
+    """One evaluation reaching the target is a noisy draw: the study's judge takes the first of
+    two consecutive evaluations that reached it, and that checkpoint's >= 128-env confirmations."""
+    from rl.runs.folder import CHECKPOINT_EVALS_LOG
+    from rl.studies.learning import confirmations_at, target_held
+
+    def row(it: int, reached: bool, envs: int = 32) -> dict:
+        return {"iteration": it, "env_steps": it * 10, "num_envs": envs, "target_reached": reached}
+
+    rows = [row(1, True), row(2, False), row(3, True), row(4, True), row(5, False)]
+    assert target_held(rows)["iteration"] == 3
+    assert target_held(rows[:3]) is None
+    log = tmp_path / CHECKPOINT_EVALS_LOG
+    log.write_text("\n".join(json.dumps(r) for r in (row(3, True), row(3, False, 128))) + "\n")
+    (confirmation,) = confirmations_at(tmp_path, 3)
+    assert confirmation["num_envs"] == 128 and not confirmation["target_reached"]
+    assert confirmations_at(tmp_path, 4) == []

@@ -23,6 +23,9 @@ from rl.runs.folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE, load_r
 from rl.tasks.registry import resolve_task
 from rl.training.config import PPOConfig
 
+CONFIRM_MIN_ENVS = 128
+"""Fresh envs an evaluation needs to confirm a target held during training [-]."""
+
 
 def read_evals(run_dir: Path) -> list[dict[str, Any]]:
     """The run's alone-evaluation rows, oldest first (during-training rows preferred)."""
@@ -54,13 +57,38 @@ def _wall_s_at(run_dir: Path, iteration: int) -> float | None:
     return float(sum(r["iteration_time_s"] for r in rows[:iteration]))
 
 
+def target_held(rows: list[dict[str, Any]], times: int = 2) -> dict[str, Any] | None:
+    """The first evaluation row from which the target held at ``times`` consecutive evaluations
+    (the judge of a learning claim: one 32-env evaluation reaching it is one noisy draw of many)."""
+    for i in range(len(rows) - times + 1):
+        if all(r["target_reached"] for r in rows[i : i + times]):
+            return rows[i]
+    return None
+
+
+def confirmations_at(
+    run_dir: Path, iteration: int, min_envs: int = CONFIRM_MIN_ENVS
+) -> list[dict[str, Any]]:
+    """Evaluations of the checkpoint at ``iteration`` on at least ``min_envs`` fresh envs
+    (``a2cf-mb eval-curve --num-envs 128`` writes them to ``evals_checkpoints.jsonl``)."""
+    path = run_dir / CHECKPOINT_EVALS_LOG
+    if not path.is_file():
+        return []
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return [r for r in rows if r["iteration"] == iteration and r["num_envs"] >= min_envs]
+
+
 def run_summary(run_dir: str | Path) -> dict[str, Any]:
-    """One run: task, mode, seed, its evaluations and where it first reached the target."""
+    """One run: task, mode, seed, its evaluations and where its target first held at two
+    consecutive evaluations (``reached_at_*``), with that checkpoint's confirmations on
+    >= 128 fresh envs (``confirmed``: there are some and each reached the target)."""
     run_dir = Path(run_dir)
     cfg = load_run_config(run_dir)
     task = resolve_task(cfg)
     rows = read_evals(run_dir)
-    first = next((r for r in rows if r["target_reached"]), None)
+    first = target_held(rows)
+    once = next((r for r in rows if r["target_reached"]), None)
+    confirmations = confirmations_at(run_dir, first["iteration"]) if first else []
     metric = task.target.metric
     last = rows[-1] if rows else None
     return {
@@ -78,6 +106,9 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
         "reached_at_env_steps": first["env_steps"] if first else None,
         "reached_at_iteration": first["iteration"] if first else None,
         "reached_at_wall_s": _wall_s_at(run_dir, first["iteration"]) if first else None,
+        "first_reached_once_at_env_steps": once["env_steps"] if once else None,
+        "confirmations": confirmations,
+        "confirmed": bool(confirmations) and all(c["target_reached"] for c in confirmations),
         "last_survival": last["survival_fraction"] if last else None,
         "last_metric": last.get("task_metrics", {}).get(metric) if last and metric else None,
         "best_survival": max((r["survival_fraction"] for r in rows), default=None),
@@ -135,11 +166,13 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
     table = []
     for name, members in groups.items():
         reached = [m["reached_at_env_steps"] for m in members if m["reached_at_env_steps"]]
+        confirmed = [m for m in members if m["reached_at_env_steps"] and m["confirmed"]]
         table.append(
             {
                 "group": name,
                 "seeds": [m["seed"] for m in members],
                 "reached": f"{len(reached)}/{len(members)}",
+                "confirmed": f"{len(confirmed)}/{len(members)}",
                 "env_steps_to_target_mean": float(np.mean(reached)) if reached else None,
                 "env_steps_to_target_std": float(np.std(reached)) if reached else None,
                 "env_steps_to_target": [m["reached_at_env_steps"] for m in members],
