@@ -296,6 +296,8 @@ def test_walk_eval_and_compare(walk_runs, tmp_path) -> None:
     assert rows["a2cf"]["eval_lin_vel_error_mps"] == result["task_metrics"]["lin_vel_error_mps"]
     assert rows["baseline"]["to_negligible_force"] is None
     assert 0.0 <= rows["a2cf"]["final_raw_track_lin_vel_xy"] <= 1.0
+    scripted = evaluate(run, EvalConfig(num_envs=2, num_steps=5, scripted=True))
+    assert scripted["task_metrics"]["command_script"] == ["forward", "turn", "sideways", "stop"]
 
 
 # ------------------------------------------------------------------------------ per command
@@ -338,3 +340,12 @@ def test_scripted_commands_and_the_standing_still_bar(tmp_path) -> None:
     kinds = command_kind(torch.tensor([[0.0, 0, 0], [0.5, 0, 0], [-0.4, 0.1, 0], [0.1, 0.3, 0.2],
                                        [0.2, 0.0, -0.9]]))  # fmt: skip
     assert [COMMAND_KINDS[k] for k in kinds] == ["stop", "forward", "backward", "sideways", "turn"]
+
+
+def test_scripted_eval_is_refused_for_a_task_without_commands() -> None:
+    from rl.evaluation.policy import _scripted_evaluation
+    from rl.tasks.registry import get_task
+
+    with pytest.raises(ValueError, match="'stand' has no scripted command sequence"):
+        _scripted_evaluation(get_task("stand"))
+    assert _scripted_evaluation(WALK).command_script[0].name == "forward"

@@ -55,6 +55,9 @@ class EvalConfig:
     sim2sim: bool = (
         False  # also roll the ONNX policy out in the second simulator (rl.evaluation.sim2sim)
     )
+    scripted: bool = False
+    """every env follows the task's scripted command sequence instead of random draws (walk: 5 s
+    each of forward, turn, sideways, stop), scored per segment; a video then shows the sequence"""
 
     def __post_init__(self) -> None:
         if self.num_envs < 1:
@@ -107,7 +110,10 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             OnnxMotionPolicy(run_dir / POLICY_FILE)
         load_bundle(run_dir, resolve_task(train_cfg))
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
-    env = G1VecEnv(env_cfg, resolve_task(train_cfg))
+    task = resolve_task(train_cfg)
+    if cfg.scripted:
+        task = dataclasses.replace(task, evaluation=_scripted_evaluation(task))
+    env = G1VecEnv(env_cfg, task)
     if not cfg.use_onnx:
         torch_policy = checkpoint_motion_policy(train_cfg, env, checkpoint)
 
@@ -160,6 +166,17 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             warnings.warn(f"eval: {result['video_note']}", stacklevel=2)
     atomic_write_json(run_dir / EVAL_FILE, result)
     return result
+
+
+def _scripted_evaluation(task: Any) -> Any:
+    """The task's evaluation config with its scripted command sequence (its ``scripted()``)."""
+    scripted = getattr(task.evaluation, "scripted", None)
+    if scripted is None:
+        raise ValueError(
+            f"task {task.name!r} has no scripted command sequence: --scripted is for tasks that "
+            "follow commands (walk, walk-flat, walk-paper); evaluate without it"
+        )
+    return scripted()
 
 
 def _require_exported_policy(run_dir: Path, exported: bool) -> None:

@@ -11,6 +11,7 @@ run folder and returns the table.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,6 +56,10 @@ class WalkEvaluationConfig:
     """terrain levels to test, cycled over env blocks [-]"""
     command_script: tuple[CommandSegment, ...] = ()
     """every env follows these segments (e.g. DEMO_SCRIPT); empty: the env's random draws"""
+
+    def scripted(self) -> WalkEvaluationConfig:
+        """This config with :data:`DEMO_SCRIPT` as every env's commands (``eval --scripted``)."""
+        return dataclasses.replace(self, command_script=DEMO_SCRIPT)
 
     def build(self, env: Any) -> WalkEvaluator:
         """Pin the env's robots to evaluation tiles, re-place them, and return the evaluator."""
