@@ -2,7 +2,10 @@
 # Copy the run folders under SRC into DST as study records: each run's config.json, git.json,
 # evals*.jsonl, warmstart.json, policy.json, metrics.json and curriculum.jsonl (gzipped), and each
 # oracle artifact's oracle.json (its reference and arrays stay out: a clip may not be ours).
-# No checkpoints, no TensorBoard events. Usage: copy_runs.sh SRC DST
+# No TensorBoard events, and no checkpoints unless KEEP_LAST=1: then each run's last checkpoint
+# (checkpoints/last.pt, ~4 MB) and its live logs (metrics.jsonl, curriculum.jsonl) come too, so a
+# later session on a fresh machine continues the run exactly: restore_runs.sh DST runs/<study>, then
+# a2cf-mb train --resume runs/<study>/<run>. Usage: [KEEP_LAST=1] copy_runs.sh SRC DST
 set -euo pipefail
 SRC=$1
 DST=$2
@@ -15,6 +18,11 @@ for run in "$SRC"/*/; do
   done
   [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
   [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
+  [ -f "$run/metrics.jsonl" ] && gzip -c "$run/metrics.jsonl" > "$DST/$name/metrics.jsonl.gz"
+  if [ "${KEEP_LAST:-0}" = "1" ] && [ -f "$run/checkpoints/last.pt" ]; then
+    mkdir -p "$DST/$name/checkpoints"
+    cp "$run/checkpoints/last.pt" "$DST/$name/checkpoints/last.pt"
+  fi
 done
 for art in "$SRC"/oracle*/; do
   [ -f "$art/oracle.json" ] || continue
