@@ -3,9 +3,10 @@
 Tolerances: Warp integrates in float32 (eps 1.2e-7), MuJoCo C in float64. Started from the same
 (float32-representable) state, the stand and dance envs measured max |dqpos| ~1e-6 and
 |dqvel| ~1e-4 over 10 policy steps (40 physics steps with 8 sole contacts solved by Newton each
-step); the bounds below are ~10x that. Randomised envs are compared by their per-world model rows,
-not by trajectories (MuJoCo C skips ``mj_setConst`` after a randomisation, Warp recomputes the
-derived fields, which changes contact softness slightly).
+step); the bounds below are ~10x that. Randomised envs are compared by their per-world model rows
+(neither backend recomputes the derived fields after a payload: no ``mj_setConst``/``set_const``).
+Graph replay against eager launches, and the host reads and eager launches of a step, are
+``tests/test_warp_budget.py``'s.
 
 The slow tests need the ``gpu`` extra (mujoco-warp) and compile Warp kernels once (~40 s+, cached
 under ~/.cache/warp). Run with ``CUDA_VISIBLE_DEVICES=""`` where no GPU is meant to be used;
@@ -192,12 +193,22 @@ def test_a_contact_pool_overflow_is_an_error_naming_the_sizes() -> None:
                            WARP_DEVICE, nconmax_per_world=2)  # fmt: skip
         tiny.qpos[:], tiny.qvel[:] = env.physics.qpos, env.physics.qvel
         tiny.set_controls(env.motion.stand_rad.expand(2, -1), torch.zeros(2, 6, device=env.device))
+        tiny.step()  # records the overflow on the device; the env raises after its host read
+        flags = {k: float(v) for k, v in tiny.fault_flags().items()}
+        assert flags["pool_overflow"] == 1.0 and flags["ncollision"] > 4, flags  # pool: 4
         with pytest.raises(ContactPoolOverflowError) as raised:
-            tiny.step()
+            tiny.raise_on_faults(flags)
         message = str(raised.value)
         assert "naconmax = 4 (2 per world x 2 worlds)" in message, message
         assert "--env-warp-nconmax-per-world" in message and "now 2" in message, message
         assert tiny.diverged_total == 0  # raised, not reset
+        small = make_env(quiet(STAND), 2, backend="warp", device=WARP_DEVICE,
+                         warp_nconmax_per_world=2)  # fmt: skip
+        try:  # the env raises in the step itself, from its one host read of the step
+            with pytest.raises(ContactPoolOverflowError, match="naconmax = 4"):
+                small.step(torch.zeros(2, 35, device=small.device))
+        finally:
+            small.close()
         sized = make_env(quiet(STAND), 2, backend="warp", device=WARP_DEVICE,
                          warp_nconmax_per_world=64, warp_njmax_per_world=320)  # fmt: skip
         try:  # the env config's flags size the pool
@@ -277,8 +288,9 @@ def test_state_dict_resumes_exactly_and_refuses_a_mujoco_checkpoint() -> None:
 @pytest.mark.slow
 @needs_warp
 def test_randomised_worlds_carry_their_own_model_and_derived_fields() -> None:
-    """Per-world friction, payload mass and CoM are the randomiser's copies, and ``set_const``
-    derived each world's subtree mass from its own payload."""
+    """Per-world friction, payload mass and CoM are the randomiser's copies; the derived fields
+    stay the nominal model's, as on MuJoCo C (whose copies keep the nominal subtree masses: no
+    ``mj_setConst`` after a payload), so no ``set_const`` runs at a reset."""
     env = make_env(STAND, 3, backend="warp", device=WARP_DEVICE)
     try:
         env.physics.qpos[0, 2] = 0.2  # force a reset: world 0 draws new parameters
@@ -296,8 +308,9 @@ def test_randomised_worlds_carry_their_own_model_and_derived_fields() -> None:
             np.testing.assert_allclose(
                 friction[i, :, 0].numpy(), model.geom_friction[:, 0], rtol=1e-6
             )
-            assert subtree[i, 0] == pytest.approx(model.body_mass.sum(), rel=1e-5)
-        assert len({float(subtree[i, 0]) for i in range(3)}) == 3  # three different payloads
+            assert subtree.shape[0] == 1  # one row for every world: not per world
+            assert subtree[0, 0] == pytest.approx(model.body_subtreemass[0], rel=1e-6)
+        assert len({float(mass[i, body]) for i in range(3)}) == 3  # three different payloads
     finally:
         env.close()
 

@@ -59,6 +59,7 @@ class AssistAction:
         self.applied_wrench = torch.zeros(num_envs, WRENCH_DIM, device=device)
         self.mask = torch.ones(num_envs, WRENCH_DIM, device=device)
         self.alone = torch.zeros(num_envs, dtype=torch.bool, device=device)
+        self._any_alone = False  # whether ``alone`` has a True row, kept on the host (no sync)
         self.step_extras: dict[str, torch.Tensor] = {}  # extras["assist"] of the last step
 
     @property
@@ -71,7 +72,7 @@ class AssistAction:
         its phase, zero for the alone envs (what the privileged and critic observations show:
         an alone env showing the helped envs' bound would look helped to the critic)."""
         bound = self.settings.bound[phase]
-        return bound.masked_fill(self.alone[:, None], 0.0) if self.alone.any() else bound
+        return bound.masked_fill(self.alone[:, None], 0.0) if self._any_alone else bound
 
     def set_bound(self, eta: torch.Tensor) -> None:
         """Set eta (num_phases, 6) [N, Nm], the per-phase, per-axis bound."""
@@ -93,12 +94,13 @@ class AssistAction:
         """Keep the first ``share`` of the envs without help (the alone envs); 0: none."""
         num = self.alone.numel()
         self.alone = torch.arange(num, device=self.device) < round(share * num)
+        self._any_alone = round(share * num) > 0
 
     def apply(self, raw: torch.Tensor, phase: torch.Tensor) -> torch.Tensor:
         """F (N, 6) in the heading frame for raw head outputs (N, 6) of envs in ``phase`` (N,)."""
         wrench, bound, self.mask = self.settings.wrench(raw, phase)
-        if self.alone.any():
-            wrench[self.alone] = 0.0
+        if self._any_alone:
+            wrench.masked_fill_(self.alone[:, None], 0.0)
         self.applied_wrench = wrench.clone()
         self.step_extras = {"applied_wrench": wrench, "bound": bound, "phase": phase}
         return wrench
@@ -120,12 +122,13 @@ class AssistAction:
         value = less_assist(extras["applied_wrench"], extras["bound"])
         return {"less_assist": value * (self.less_assist_weight * step_dt_s)}
 
-    def log(self) -> dict[str, float]:
-        """Mean force and torque norms of this step."""
+    def log(self) -> dict[str, torch.Tensor]:
+        """Mean force and torque norms of this step (0-dim tensors on the device: the env sends
+        its log to the host in one batch)."""
         wrench = self.step_extras["applied_wrench"]
         return {
-            "Assist/force_norm_n": float(wrench[:, :3].norm(dim=-1).mean()),
-            "Assist/torque_norm_nm": float(wrench[:, 3:].norm(dim=-1).mean()),
+            "Assist/force_norm_n": wrench[:, :3].norm(dim=-1).mean(),
+            "Assist/torque_norm_nm": wrench[:, 3:].norm(dim=-1).mean(),
         }
 
     def state_dict(self) -> dict[str, Any]:

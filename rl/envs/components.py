@@ -169,6 +169,7 @@ class EpisodeWindow:
     def __init__(self, size: int) -> None:
         self.values = torch.zeros(size)
         self.count = 0
+        self._mean: float | None = None  # the mean on the host, read once after each change
 
     def push(self, values: torch.Tensor) -> None:
         """Append per-episode values (M,) (only the newest ``size`` are kept)."""
@@ -179,10 +180,16 @@ class EpisodeWindow:
         if n:
             self.values = torch.cat([self.values[n:], values])
             self.count = min(self.count + n, self.values.numel())
+            self._mean = None
 
     def mean(self, empty: float = 0.0) -> float:
-        """Mean of the values held (``empty`` before any)."""
-        return float(self.values[-self.count :].mean()) if self.count else empty
+        """Mean of the values held (``empty`` before any); read from the device only after a
+        push changed it (the env asks every step)."""
+        if not self.count:
+            return empty
+        if self._mean is None:
+            self._mean = float(self.values[-self.count :].mean())
+        return self._mean
 
     def state_dict(self) -> dict[str, Any]:
         """Values and fill count."""
@@ -192,6 +199,7 @@ class EpisodeWindow:
         """Restore :meth:`state_dict` output (the next push moves it to the env's device)."""
         self.values = state["window"].clone()
         self.count = int(state["count"])
+        self._mean = None
 
 
 class SkillMeasure(Component, ABC):

@@ -52,16 +52,17 @@ class MotionAction(DeclaredState):
 
 def checked_actions(
     actions: torch.Tensor, shape: tuple[int, int], clip: float, device: torch.device | str
-) -> tuple[torch.Tensor, int]:
-    """``actions`` (N, 35) as float32 on ``device``, non-finite rows zeroed (MuJoCo would reset
-    them; returned: how many) and clipped to ``[-clip, clip]``; a wrong shape is one line."""
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``actions`` (N, 35) as float32 on ``device``, non-finite entries zeroed (MuJoCo would
+    reset them; returned: how many rows had one, a 0-dim tensor on ``device``: no host read) and
+    clipped to ``[-clip, clip]``; a wrong shape is one line."""
     if tuple(actions.shape) != shape:
         raise ValueError(
             f"G1VecEnv.step expects actions of shape {shape} = (num_envs, 29 joint + 6 assist), "
             f"got {tuple(actions.shape)}."
         )
     actions = actions.detach().to(device, torch.float32)
-    nonfinite = int((~torch.isfinite(actions).all(dim=-1)).sum())
-    if nonfinite:
-        actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
+    nonfinite = (~torch.isfinite(actions).all(dim=-1)).sum()
+    # unconditional: finite entries pass unchanged, so no host read decides whether to run it
+    actions = torch.nan_to_num(actions, nan=0.0, posinf=0.0, neginf=0.0)
     return actions.clamp(-clip, clip), nonfinite

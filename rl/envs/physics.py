@@ -46,6 +46,7 @@ class Physics(Protocol):
     stand_qpos: torch.Tensor  # (36,) float64 standing keyframe
     stand_qvel: torch.Tensor  # (35,) float64
     diverged_total: int  # rows replaced since the start because they diverged [-]
+    diverged_counter: int | torch.Tensor  # the same, as the env logs it (Warp: on the device) [-]
 
     def set_controls(self, joint_targets_rad: torch.Tensor, wrench_w: torch.Tensor) -> None:
         """Hold PD targets (N, 29) [rad] and the pelvis wrench (N, 6) (world-frame force [N],
@@ -54,6 +55,14 @@ class Physics(Protocol):
     def step(self) -> torch.Tensor:
         """Advance every env ``decimation`` physics steps; returns (N,) bool, the rows that
         diverged (their state is the standing keyframe until the env resets them)."""
+
+    def fault_flags(self) -> dict[str, torch.Tensor]:
+        """Device scalars that a step left for the env to bring to the host with its own batch of
+        host values (no wait of its own for the device); empty where there are none."""
+
+    def raise_on_faults(self, host: dict[str, float]) -> None:
+        """Raise if ``host`` (:meth:`fault_flags` on the host) names a fault that leaves every
+        row's step wrong."""
 
     def reset_rows(self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
         """Start ``env_ids`` (M,) from ``qpos`` (M, 36), ``qvel`` (M, 35) at time 0; their
@@ -188,6 +197,18 @@ class MujocoRolloutPhysics:
             self.sensordata[rows] = 0.0
             self.diverged_total += num_diverged
         return diverged
+
+    @property
+    def diverged_counter(self) -> int:
+        """:attr:`diverged_total` (a host count here)."""
+        return self.diverged_total
+
+    def fault_flags(self) -> dict[str, torch.Tensor]:
+        """None: a MuJoCo C step fails row by row (:meth:`step`'s ``diverged``)."""
+        return {}
+
+    def raise_on_faults(self, host: dict[str, float]) -> None:
+        """Nothing to raise (:meth:`fault_flags` is empty)."""
 
     def _diverged(self, time_in: np.ndarray) -> torch.Tensor:
         """Rows that went non-finite, blew up, or were silently reset by MuJoCo's own checks

@@ -90,29 +90,27 @@ def sum_rewards(
     state: EnvState,
     step_dt_s: float,
     extra: dict[str, torch.Tensor] | None = None,
-) -> tuple[torch.Tensor, dict[str, float]]:
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """The step reward (N,): ``weight * term(state) * dt`` summed over ``terms``, plus ``extra``
-    terms already weighted (e.g. the less-assist reward); and ``Reward/<name>`` means to log."""
+    terms already weighted (e.g. the less-assist reward); and ``Reward/<name>`` means to log
+    (0-dim tensors on the state's device: the env sends its log to the host in one batch)."""
     names = [t.name for t in terms]
     values = [t(state) * (t.weight * step_dt_s) for t in terms]
     for name, value in (extra or {}).items():
         names.append(name)
         values.append(value)
     weighted = torch.stack(values)  # (terms, N)
-    means = weighted.mean(dim=1).tolist()
+    means = weighted.mean(dim=1)
     return weighted.sum(dim=0), {f"Reward/{k}": v for k, v in zip(names, means, strict=True)}
 
 
 def any_failure(
     terms: tuple[TerminationTerm, ...], state: EnvState
-) -> tuple[torch.Tensor, dict[str, float]]:
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Failures (N,) bool, any of ``terms`` true (none: all False), and each term's share of
-    failing envs as ``Termination/<name>`` to log."""
+    failing envs as ``Termination/<name>`` to log (0-dim tensors, as :func:`sum_rewards`'s)."""
     per_term = [term(state) for term in terms]
     if not per_term:
         return torch.zeros_like(state.terminated), {}
-    log = {
-        f"Termination/{t.name}": float(v.float().mean())
-        for t, v in zip(terms, per_term, strict=True)
-    }
+    log = {f"Termination/{t.name}": v.float().mean() for t, v in zip(terms, per_term, strict=True)}
     return torch.stack(per_term).any(dim=0), log

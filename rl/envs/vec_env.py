@@ -22,6 +22,7 @@ from rl.envs.assist_action import AssistAction
 from rl.envs.backends import make_physics
 from rl.envs.config import EnvConfig
 from rl.envs.contact_timers import ContactTimers
+from rl.envs.host_values import to_host
 from rl.envs.model import build_physics_model
 from rl.envs.motion_action import MotionAction, checked_actions
 from rl.envs.observation_groups import ObservationGroups
@@ -171,42 +172,39 @@ class G1VecEnv(VecEnv):
         failed, termination_log = any_failure(self.task.terminations, state)
         state.terminated = failed
         terminated = failed | diverged
-        time_outs = self.resets.time_outs(terminated) | (
-            self.task_components.time_outs() & ~terminated
-        )
+        ends = self.task_components.time_outs() & ~terminated  # the command's, not a failure
+        time_outs = self.resets.time_outs(terminated) | ends
         dones = terminated | time_outs
         dt = self.step_dt_s
         reward, log = sum_rewards(self.task.rewards, state, dt, self.assist.rewards(dt))
         reward = torch.where(diverged, torch.zeros_like(reward), torch.nan_to_num(reward))
-        done_ids = dones.nonzero().flatten()
+        log.update(termination_log)
+        log["Episode/diverged_envs"] = diverged.sum()
+        log["Episode/diverged_envs_total"] = self.physics.diverged_counter
+        log["Episode/nonfinite_action_envs"] = nonfinite_actions
+        log["Episode/terminated"] = terminated.float().mean()
+        log.update(self.assist.log())
+        log["Train/mean_step_reward"] = reward.mean()
+        faults = self.physics.fault_flags()  # keys without a "/": never a log key
+        log, done_ids = to_host({**log, **faults}, dones)  # the step's one wait for the device
+        self.physics.raise_on_faults({k: log.pop(k) for k in faults})
+        self.motion.end_step()
         if done_ids.numel():
             lived = self.resets.lived_steps[done_ids]
             self.task_components.on_episodes_end(
                 done_ids, time_outs[done_ids], lived, state, self.assist.alone
             )
-        self.motion.end_step()
-        if done_ids.numel():
             self._reset(done_ids)
             state = self._read_state(terminated=failed)
         self._advance_task(state)
         obs = self.observations.compute(state, done_ids, stepped=True)
-        log.update(termination_log)
-        log["Episode/diverged_envs"] = float(diverged.sum())
-        log["Episode/diverged_envs_total"] = float(self.physics.diverged_total)
-        log["Episode/nonfinite_action_envs"] = float(nonfinite_actions)
-        log["Episode/terminated"] = float(terminated.float().mean())
-        log.update(self.assist.log())
-        log["Train/mean_step_reward"] = float(reward.mean())
         progress = log["Episode/skill_progress"] = self.skill.progress()
         alone = self.task_components.alone_skill
-        alone_progress = None if alone is None else alone.progress()
-        if alone_progress is not None:
-            log["Episode/skill_progress_alone"] = alone_progress
+        alone_progress = {} if alone is None else {"skill_progress_alone": alone.progress()}
+        log.update({f"Episode/{k}": v for k, v in alone_progress.items()})
         log.update(self.task_components.log())
         extras = {"time_outs": time_outs, "log": log, "assist": self.assist.step_extras,
-                  "skill_progress": progress}  # fmt: skip
-        if alone_progress is not None:
-            extras["skill_progress_alone"] = alone_progress
+                  "skill_progress": progress, **alone_progress}  # fmt: skip
         return obs, reward, dones, extras
 
     def close(self) -> None:

@@ -2,23 +2,27 @@
 extra), on Warp's CPU device or on a CUDA GPU.
 
 One ``mjw.Data`` holds every env as a world; a policy step is ``decimation`` calls of ``mjw.step``
-(captured once in a CUDA graph on a GPU whose Warp memory pool is on). Warp computes in float32,
+and a reset one call of ``mjw.forward`` (sensors of the new rows), each captured once in a Warp
+graph and replayed (on a GPU whose Warp memory pool is on; on request on Warp's CPU device too).
+Warp computes in float32,
 so ``qpos``/``qvel`` are float32 here (float64 on MuJoCo C). The tensors handed to the env
 (``qpos``, ``qvel``, the readings of :meth:`WarpPhysics.read`) are ``wp.to_torch`` views of the
 worlds' arrays, and the joint targets and the pelvis wrench are written into such views: on
 Warp's CPU device and on a GPU alike, a step copies nothing between host and device (the env's
-parts live on the same device, see ``docs/gpu.md``). What goes through host memory, at resets only: the randomised
-``MjModel`` rows (copied into the per-world model arrays) and the env ids of the model rows to
-copy.
+parts live on the same device, see ``docs/gpu.md``), and waits on the device nowhere: bad rows are
+replaced with ``torch.where`` masks, the divergence count stays on the device, and the contact
+pool's overflow flag goes to the host with the env's one batch of host values per step
+(:meth:`WarpPhysics.fault_flags`). What goes through host memory, at resets of randomised envs
+only: the randomised ``MjModel`` rows (copied into the per-world model arrays) and the env ids of
+the model rows to copy.
 
 Domain randomisation: the :class:`rl.envs.randomization.Randomizer` still writes its ``MjModel``
 copies; the fields it writes (:data:`rl.envs.randomization.MODEL_FIELDS`) are made per world
 (batch size = number of copies, read by the kernels as ``field[world % copies]``, the
-randomiser's own ``i % G`` rule) and copied in when an env resets, then ``mjw.set_const``
-recomputes the derived fields (:data:`DERIVED_FIELDS`, batched too, else every world's
-``set_const`` lands in row 0). MuJoCo C does not call ``mj_setConst`` after a randomisation, so
-randomised envs differ slightly between the backends (contact regularisation via
-``body_invweight0``); without randomisation they agree to float32 precision.
+randomiser's own ``i % G`` rule) and copied in when an env resets. ``mjw.set_const`` is not
+called: MuJoCo C never calls ``mj_setConst`` after writing a payload either, so the derived
+fields (subtree masses, inverse weights) stay the nominal model's on both backends, and a reset
+costs no 769 eager kernel launches over every world.
 """
 
 from __future__ import annotations
@@ -37,8 +41,6 @@ from rl.envs.physics import robot_fields
 from rl.envs.randomization import MODEL_FIELDS
 from robots import g1
 
-DERIVED_FIELDS = ("body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_acc0")
-"""Model fields ``mjw.set_const`` derives from mass and CoM: per world whenever masses are."""
 GPU_EXTRA_HINT = "install the gpu extra: pip install 'a2cf-mb[gpu]' (or -e '.[gpu]' in a checkout)"
 
 
@@ -135,11 +137,14 @@ class WarpPhysics:
         *,
         nconmax_per_world: int = NCONMAX_PER_WORLD,
         njmax_per_world: int = NJMAX_PER_WORLD,
+        graphs: bool | None = None,
     ) -> None:
         """``model``: the nominal model; ``models`` (N,): the model of each env (the randomiser's
         copies, env i using copy i % G); ``max_abs_qvel`` [m/s, rad/s]: the divergence guard;
         ``nconmax_per_world`` [-]: the shared contact pool's size per world; ``njmax_per_world``
-        [-]: constraint rows per world."""
+        [-]: constraint rows per world; ``graphs``: replay the step and the reset's ``forward``
+        from Warp graphs (None: where :func:`cuda_graphs_usable`; True also works on Warp's CPU
+        device, which the tests use)."""
         wp, mjw = self._wp, self._mjw = import_warp()
         if device.startswith("cuda") and not wp.is_cuda_available():
             raise ValueError(
@@ -155,7 +160,7 @@ class WarpPhysics:
         self.device = wp.get_device(device)
         self.copies = _model_copies(models)
         k = len(self.copies)
-        batch = dict.fromkeys(MODEL_FIELDS + DERIVED_FIELDS, k) if k > 1 else None
+        batch = dict.fromkeys(MODEL_FIELDS, k) if k > 1 else None
         with wp.ScopedDevice(self.device):
             self.m = mjw.put_model(model, batch_sizes=batch)
             self.d = mjw.make_data(
@@ -165,7 +170,7 @@ class WarpPhysics:
         # The env's tensors live on the torch device of Warp's. Ordering between torch's work and
         # Warp's launches on a GPU: Warp's streams are blocking streams, which the legacy default
         # stream torch uses synchronises with, so no explicit events are needed.
-        self.torch_device = wp.device_to_torch(self.device)
+        self.torch_device = dev = wp.device_to_torch(self.device)
         self._sim = {  # torch views of the worlds' arrays (on Warp's device): what the env reads
             "qpos": wp.to_torch(d.qpos),
             "qvel": wp.to_torch(d.qvel),
@@ -179,19 +184,28 @@ class WarpPhysics:
         self._fatal = _fatal_overflow(mjw)
         self._pool = _pool_overflow(mjw)
         self.qpos, self.qvel = self._sim["qpos"], self._sim["qvel"]
-        dev = self.torch_device
         stand = torch.as_tensor(lay.stand_state, dtype=torch.float64)
         self.stand_qpos = stand[lay.qpos].to(dev)
         self.stand_qvel = stand[lay.qvel].to(dev)
+        self._stand_qpos32, self._stand_qvel32 = self.stand_qpos.float(), self.stand_qvel.float()
         self._stand_ctrl = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32, device=dev)
         self._model_views = {
             f: wp.to_torch(getattr(self.m, f)) for f in MODEL_FIELDS if k > 1
         }  # (G, ...) per-world model fields
         self._models_dirty = k > 1  # copy every model row in before the next step
-        self._use_graph = cuda_graphs_usable(wp, self.device)
-        self._graph = None  # CUDA graph of decimation steps, captured on the second step
-        self._graph_ready = False
-        self.diverged_total = 0
+        self._use_graph = cuda_graphs_usable(wp, self.device) if graphs is None else graphs
+        self._graphs: dict[str, Any] = {}  # "step", "forward": captured after their first run
+        self._ran: set[str] = set()  # launched eagerly once: kernels compiled, ready to capture
+        # Counted on the device: the env fetches it with its batch of host values (never a sync).
+        self.diverged_counter = torch.zeros((), dtype=torch.long, device=dev)
+        # The contact pool's overflow, sticky, with the sizes a step asked for (ncollision, nacon).
+        self._pool_fault = torch.zeros(3, dtype=torch.long, device=dev)
+        self._pool_sizes = wp.to_torch(d.ncollision), wp.to_torch(d.nacon)
+
+    @property
+    def diverged_total(self) -> int:
+        """Rows replaced since the start because they diverged (a host read: a sync on a GPU)."""
+        return int(self.diverged_counter)
 
     # ---------------------------------------------------------------- Physics
     def set_controls(self, joint_targets_rad: torch.Tensor, wrench_w: torch.Tensor) -> None:
@@ -205,98 +219,112 @@ class WarpPhysics:
         """``decimation`` physics steps of every world; returns (N,) bool, the worlds that were
         non-finite before, went non-finite, exceeded ``max_abs_qvel`` or overflowed a buffer of
         their own: they are counted and hold the standing keyframe until the env resets them.
-        An overflow of the contact pool all worlds share raises :class:`ContactPoolOverflowError`
-        (resetting every world would hide it)."""
-        qpos, qvel = self.qpos, self.qvel
+        An overflow of the contact pool all worlds share is recorded for :meth:`raise_on_faults`
+        (resetting every world would hide it). Nothing here waits for the device."""
+        qpos, qvel, sens = self.qpos, self.qvel, self._sim["sensordata"]
         bad_in = ~(torch.isfinite(qpos).all(dim=1) & torch.isfinite(qvel).all(dim=1))
-        if bad_in.any():
-            self._stand_rows(bad_in.nonzero().flatten())
+        self._stand_where(bad_in)
         if self._models_dirty:
             self._sync_models(range(len(self.copies)))
-        self._advance()
-        sens = self._sim["sensordata"]
+        self._launch("step", self._steps)
         finite = torch.isfinite(qpos).all(dim=1) & torch.isfinite(qvel).all(dim=1)
         finite &= torch.isfinite(sens).all(dim=1)
         calm = torch.nan_to_num(qvel, nan=torch.inf).abs().amax(dim=1) < self.max_abs_qvel
         overflow = (self._overflow & self._fatal) != 0
         diverged = bad_in | ~finite | ~calm | overflow
-        pool = ((self._overflow & self._pool) != 0).any().long()
-        counts = torch.stack([diverged.sum(), pool])
-        num_diverged, pool_overflowed = counts.tolist()  # one transfer to the host for both
-        if pool_overflowed:
-            d, to_torch = self.d, self._wp.to_torch
-            asked = int(to_torch(d.ncollision)[0]), int(to_torch(d.nacon)[0])
-            raise ContactPoolOverflowError(_contact_pool_message(*asked, d.naconmax, d.nworld))
-        if num_diverged:
-            rows = diverged.nonzero().flatten()
-            self._stand_rows(rows)
-            sens[rows] = 0.0
-            self.diverged_total += num_diverged
+        pool = ((self._overflow & self._pool) != 0).any()
+        asked = torch.stack(
+            [pool.long(), self._pool_sizes[0][0].long(), self._pool_sizes[1][0].long()]
+        )
+        first = pool & (self._pool_fault[0] == 0)  # keep the first overflow's sizes
+        self._pool_fault.copy_(torch.where(first, asked, self._pool_fault))
+        self._stand_where(diverged)
+        sens.masked_fill_(diverged[:, None], 0.0)
+        self.diverged_counter += diverged.sum()
         return diverged
 
-    def _advance(self) -> None:
-        """``decimation`` ``mjw.step`` calls (replayed from a CUDA graph after the first step where
-        :func:`cuda_graphs_usable`)."""
-        wp, mjw = self._wp, self._mjw
+    def fault_flags(self) -> dict[str, torch.Tensor]:
+        """Device scalars the env fetches with its batch of host values after a step: the contact
+        pool's overflow flag and the broadphase pairs and contacts the step asked for."""
+        flag, ncollision, nacon = self._pool_fault
+        return {"pool_overflow": flag, "ncollision": ncollision, "nacon": nacon}
 
-        def steps() -> None:
-            for _ in range(self.decimation):
-                mjw.step(self.m, self.d)
+    def raise_on_faults(self, host: dict[str, float]) -> None:
+        """Raise :class:`ContactPoolOverflowError` if ``host`` (:meth:`fault_flags` on the host)
+        says the contact pool overflowed."""
+        if host["pool_overflow"]:
+            d = self.d
+            message = _contact_pool_message(
+                int(host["ncollision"]), int(host["nacon"]), d.naconmax, d.nworld
+            )
+            raise ContactPoolOverflowError(message)
 
-        if self._use_graph and self._graph_ready:
-            if self._graph is None:  # kernels are compiled by now: capture once
-                self._graph = capture_graph(wp, self.device, steps)
-            wp.capture_launch(self._graph)
+    def _steps(self) -> None:
+        for _ in range(self.decimation):
+            self._mjw.step(self.m, self.d)
+
+    def _launch(self, name: str, launches: Callable[[], None]) -> None:
+        """Run ``launches`` (Warp kernels on every world): replayed from its graph where graphs are
+        on, captured at the second call (the first compiles the kernels eagerly)."""
+        wp = self._wp
+        if self._use_graph and name in self._ran:
+            if name not in self._graphs:
+                self._graphs[name] = capture_graph(wp, self.device, launches)
+            wp.capture_launch(self._graphs[name])
             return
         with wp.ScopedDevice(self.device):
-            steps()
-        self._graph_ready = True
+            launches()
+        self._ran.add(name)
 
-    def _stand_rows(self, rows: torch.Tensor) -> None:
-        """Put worlds ``rows`` (M,) at the standing keyframe, time 0, no warm start, no overflow
-        (the placeholder until the env resets them)."""
-        rows = rows.to(self.torch_device)
-        self.qpos[rows] = self.stand_qpos.float()
-        self.qvel[rows] = self.stand_qvel.float()
-        self._time[rows] = 0.0
-        self._warmstart[rows] = 0.0
-        self._overflow[rows] = 0
+    def _stand_where(self, rows: torch.Tensor) -> None:
+        """Put the worlds where ``rows`` (N,) bool is set at the standing keyframe, time 0, no warm
+        start, no overflow (the placeholder until the env resets them); a mask, not indices,
+        so that no host read of ``rows`` is needed."""
+        col = rows[:, None]
+        self.qpos.copy_(torch.where(col, self._stand_qpos32, self.qpos))
+        self.qvel.copy_(torch.where(col, self._stand_qvel32, self.qvel))
+        self._time.masked_fill_(rows, 0.0)
+        self._warmstart.masked_fill_(col, 0.0)
+        self._overflow.masked_fill_(rows, 0)
 
     def reset_rows(self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
         """Start worlds ``env_ids`` (M,) from ``qpos`` (M, 36), ``qvel`` (M, 35) at time 0 with
         their (re)randomised model rows; sensors recomputed at the stand targets, no wrench.
         The randomised model rows come from the host ``MjModel`` copies (a reset-time copy)."""
         env_ids = env_ids.to(self.torch_device)
-        self._stand_rows(env_ids)
+        rows = torch.zeros(self.num_envs, dtype=torch.bool, device=self.torch_device)
+        rows[env_ids] = True
+        self._stand_where(rows)
         self.qpos[env_ids] = qpos.to(self.torch_device, torch.float32)
         self.qvel[env_ids] = qvel.to(self.torch_device, torch.float32)
         self._sim["ctrl"][env_ids] = self._stand_ctrl
         self._sim["xfrc_applied"][env_ids] = 0.0
-        if len(self.copies) > 1:
+        if len(self.copies) > 1:  # the host copies' rows: the env ids go to the host
             self._sync_models(sorted({i % len(self.copies) for i in env_ids.tolist()}))
-        self.refresh_sensors(env_ids)
+        self._refresh_rows(rows)
 
     def refresh_sensors(self, env_ids: torch.Tensor) -> None:
         """Recompute the sensor rows of ``env_ids`` (M,) from the current state and controls.
         ``mjw.forward`` runs every world; the other worlds keep their sensor rows."""
+        rows = torch.zeros(self.num_envs, dtype=torch.bool, device=self.torch_device)
+        rows[env_ids.to(self.torch_device)] = True
+        self._refresh_rows(rows)
+
+    def _refresh_rows(self, rows: torch.Tensor) -> None:
+        """:meth:`refresh_sensors` of the worlds where ``rows`` (N,) bool is set."""
         sens = self._sim["sensordata"]
         keep = sens.clone()
-        with self._wp.ScopedDevice(self.device):
-            self._mjw.forward(self.m, self.d)
-        others = torch.ones(self.num_envs, dtype=torch.bool, device=sens.device)
-        others[env_ids.to(sens.device)] = False
-        sens[others] = keep[others]
+        self._launch("forward", lambda: self._mjw.forward(self.m, self.d))
+        sens.copy_(torch.where(rows[:, None], sens, keep))
 
     def _sync_models(self, rows) -> None:
-        """Copy the randomised fields of model copies ``rows`` into their world rows and recompute
-        the derived fields (``mjw.set_const``: masses, CoM, inverse weights of every row). The
-        values come from the host ``MjModel`` copies: a host-to-device copy, at resets only."""
+        """Copy the randomised fields of model copies ``rows`` into their world rows. The values
+        come from the host ``MjModel`` copies: a host-to-device copy, at resets only. The derived
+        fields are left nominal, as MuJoCo C leaves them (no ``set_const``, module docstring)."""
         rows = list(rows)
         for field, view in self._model_views.items():
             values = np.stack([getattr(self.copies[r], field) for r in rows])
             view[rows] = torch.as_tensor(values, dtype=view.dtype).to(view.device)
-        with self._wp.ScopedDevice(self.device):
-            self._mjw.set_const(self.m, self.d)
         self._models_dirty = False
 
     def read(self) -> dict[str, Any]:
@@ -347,24 +375,26 @@ class WarpPhysics:
         self._sim["sensordata"].copy_(state["sensordata"])
         self._time.copy_(state["warp_time"])
         self._warmstart.copy_(state["warp_qacc_warmstart"])
-        self.diverged_total = int(state["diverged_total"])
+        self.diverged_counter.fill_(int(state["diverged_total"]))
         self._models_dirty = len(self.copies) > 1
 
     def close(self) -> None:
-        """Drop the graph and the device arrays."""
-        self._graph = None
+        """Drop the graphs and the device arrays."""
+        self._graphs.clear()
         self._sim.clear()
 
 
 def _model_copies(models: list[mujoco.MjModel]) -> list[mujoco.MjModel]:
     """The distinct models of ``models`` (N,), checked to follow the randomiser's rule (env i
     steps with copy i % G), which is how Warp reads a per-world field of G rows."""
+    index: dict[int, int] = {}  # id of a distinct model -> its copy number (O(N), not O(N^2))
     copies: list[mujoco.MjModel] = []
     for model in models:
-        if all(model is not c for c in copies):
+        if id(model) not in index:
+            index[id(model)] = len(copies)
             copies.append(model)
     k = len(copies)
-    if any(model is not copies[i % k] for i, model in enumerate(models)):
+    if any(index[id(model)] != i % k for i, model in enumerate(models)):
         raise ValueError(
             "WarpPhysics: env i must step with model copy i % G (the Randomizer's rule); "
             "got another assignment of models to envs"
