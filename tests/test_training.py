@@ -414,3 +414,14 @@ def test_the_walks_alone_envs_move_their_own_terrain_levels() -> None:
         assert "Curriculum/terrain_level_alone" in alone.log()
     finally:
         env.close()
+
+
+def test_a_learning_rate_stuck_at_the_adaptive_floor_is_detected() -> None:
+    """walk-flat's 5 x 4 update at 128 x 24 samples kept rsl-rl's adaptive rate at 1e-5 from the
+    first iteration on: the run warns (RunLogger) when the last 50 iterations sat there."""
+    from rl.training.runner import ADAPTIVE_LR_FLOOR, learning_rate_floored
+
+    stuck = [{"learning_rate": ADAPTIVE_LR_FLOOR * f} for f in (1.0, 1.5) * 25]
+    assert learning_rate_floored(stuck)
+    assert not learning_rate_floored(stuck[:-1])  # too few iterations to tell
+    assert not learning_rate_floored(stuck[:-1] + [{"learning_rate": 3e-4}])

@@ -116,13 +116,32 @@ def _mean_of(ep_extras: list[dict], key: str) -> float | None:
     return float(np.mean(values)) if values else None
 
 
+ADAPTIVE_LR_FLOOR = 1e-5
+"""The lowest learning rate of rsl-rl's adaptive (KL) schedule [-]."""
+
+LR_FLOOR_WARN_ITERATIONS = 50
+"""Consecutive iterations at (or one step above) the floor before the run warns [-]."""
+
+
+def learning_rate_floored(
+    rows: list[dict[str, Any]], window: int = LR_FLOOR_WARN_ITERATIONS
+) -> bool:
+    """Whether the last ``window`` iterations' learning rates all sat at the adaptive schedule's
+    floor (or one 1.5x step above it): PPO then barely moves the policy, whatever the rewards."""
+    if len(rows) < window:
+        return False
+    return all(r["learning_rate"] <= 1.5 * ADAPTIVE_LR_FLOOR * 1.01 for r in rows[-window:])
+
+
 class RunLogger(Logger):
-    """rsl-rl's logger, also keeping one metrics row per iteration for ``metrics.json``."""
+    """rsl-rl's logger, also keeping one metrics row per iteration for ``metrics.json``, and
+    warning once when the adaptive learning rate is stuck at its floor."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.rows: list[dict[str, Any]] = []
         self.curriculum: AssistCurriculum | None = None
+        self._warned_lr_floor = False
 
     def log(self, it: int, start_it: int, total_it: int, collect_time: float, learn_time: float,
             loss_dict: dict, learning_rate: float, *args: Any, **kwargs: Any) -> None:  # fmt: skip
@@ -153,6 +172,15 @@ class RunLogger(Logger):
                 "learning_rate": float(learning_rate),
             }
         )
+        if not self._warned_lr_floor and learning_rate_floored(self.rows):
+            self._warned_lr_floor = True
+            print(
+                f"a2cf-mb train: warning: the adaptive learning rate has sat at its floor "
+                f"({ADAPTIVE_LR_FLOOR:g}) for {LR_FLOOR_WARN_ITERATIONS} iterations: every PPO "
+                "mini-batch overshoots the KL target, so the policy barely learns. Use fewer "
+                "passes per rollout (--ppo-num-learning-epochs 2) or a larger batch (--num-envs)",
+                file=sys.stderr,
+            )
         super().log(
             it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, *args,
             **kwargs,
