@@ -176,9 +176,10 @@ class RunLogger(Logger):
             self._warned_lr_floor = True
             print(
                 f"a2cf-mb train: warning: the adaptive learning rate has sat at its floor "
-                f"({ADAPTIVE_LR_FLOOR:g}) for {LR_FLOOR_WARN_ITERATIONS} iterations: every PPO "
-                "mini-batch overshoots the KL target, so the policy barely learns. Use fewer "
-                "passes per rollout (--ppo-num-learning-epochs 2) or a larger batch (--num-envs)",
+                f"({ADAPTIVE_LR_FLOOR:g}) at the end of {LR_FLOOR_WARN_ITERATIONS} iterations: PPO's "
+                "late mini-batches keep overshooting the KL target, so every update starts from "
+                "the floor. Use fewer passes per rollout (--ppo-num-learning-epochs 2) or a "
+                "larger batch (--num-envs)",
                 file=sys.stderr,
             )
         super().log(

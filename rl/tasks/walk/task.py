@@ -153,9 +153,9 @@ WALK_FLAT = TaskConfig(
     phases=SinglePhaseConfig(names=("walk",)),
     skill=SurvivalSkillConfig(target_survival=0.9),
     less_assist_weight=2.0,
-    # 5 PPO passes x 4 mini-batches over 128 x 24 samples overshot the KL target on every
-    # mini-batch: the adaptive rate sat at its 1e-5 floor from the first iteration on (2 passes:
-    # 2-4e-4), docs/results/walk_flat
+    # 5 PPO passes x 4 mini-batches over 128 x 24 samples: the late mini-batches overshot the KL
+    # target and the adaptive rate ended every iteration at its 1e-5 floor (2 passes: 2-4e-4),
+    # docs/environments.md
     learning_epochs=2,
     vae_learning_epochs=1,
     oracle_tasks=("walk",),  # solve-walk's gait is on flat ground
