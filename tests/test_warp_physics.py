@@ -317,6 +317,37 @@ def test_randomised_worlds_carry_their_own_model_and_derived_fields() -> None:
 
 @pytest.mark.slow
 @needs_warp
+def test_shared_model_copies_are_copied_in_once_not_at_every_reset(monkeypatch) -> None:
+    """With G shared copies (drawn once), world i steps with copy i % G from its first step on,
+    and a reset copies no model rows (no host read of the reset ids)."""
+    from rl.envs.warp_physics import WarpPhysics
+
+    task = dataclasses.replace(
+        STAND, randomization=dataclasses.replace(STAND.randomization, model_groups=2)
+    )
+    env = make_env(task, 3, backend="warp", device=WARP_DEVICE)
+    try:
+        copied = []
+        original = WarpPhysics._sync_models
+        monkeypatch.setattr(
+            WarpPhysics,
+            "_sync_models",
+            lambda self, rows: copied.append(list(rows)) or original(self, rows),
+        )
+        env.step(torch.zeros(3, 35, device=env.device))
+        env.physics.qpos[0, 2] = 0.2  # a fall: world 0 resets
+        _, _, dones, _ = env.step(torch.zeros(3, 35, device=env.device))
+        assert dones.tolist() == [True, False, False] and copied == []  # copied at init only
+        mass = env.physics._model_views["body_mass"].cpu()
+        body = env.randomizer.writer.body
+        for g, model in enumerate(env.randomizer.model_copies):
+            assert mass[g, body] == pytest.approx(model.body_mass[body], rel=1e-6)
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@needs_warp
 def test_the_env_reads_and_writes_the_warp_arrays_themselves() -> None:
     """No per-step copies: qpos, qvel, sensors, joint targets and the pelvis wrench the env reads
     and writes are torch views of the worlds' Warp arrays (same memory)."""

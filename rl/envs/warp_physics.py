@@ -290,7 +290,9 @@ class WarpPhysics:
     def reset_rows(self, env_ids: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
         """Start worlds ``env_ids`` (M,) from ``qpos`` (M, 36), ``qvel`` (M, 35) at time 0 with
         their (re)randomised model rows; sensors recomputed at the stand targets, no wrench.
-        The randomised model rows come from the host ``MjModel`` copies (a reset-time copy)."""
+        Per-env model copies (one per world: the randomiser redraws them at resets) are copied
+        in from the host ``MjModel`` copies; fewer, shared copies are drawn once and change only
+        at a load (copied in once, then), so a reset copies none."""
         env_ids = env_ids.to(self.torch_device)
         rows = torch.zeros(self.num_envs, dtype=torch.bool, device=self.torch_device)
         rows[env_ids] = True
@@ -299,8 +301,10 @@ class WarpPhysics:
         self.qvel[env_ids] = qvel.to(self.torch_device, torch.float32)
         self._sim["ctrl"][env_ids] = self._stand_ctrl
         self._sim["xfrc_applied"][env_ids] = 0.0
-        if len(self.copies) > 1:  # the host copies' rows: the env ids go to the host
-            self._sync_models(sorted({i % len(self.copies) for i in env_ids.tolist()}))
+        if self._models_dirty:
+            self._sync_models(range(len(self.copies)))
+        elif len(self.copies) == self.num_envs > 1:  # per-env copies, redrawn at resets: their
+            self._sync_models(env_ids.tolist())  # host rows, so the env ids go to the host
         self._refresh_rows(rows)
 
     def refresh_sensors(self, env_ids: torch.Tensor) -> None:
