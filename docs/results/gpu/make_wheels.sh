@@ -2,7 +2,10 @@
 # Every wheel a2cf-mb[gpu] needs, in one folder, for a machine with no package index (issue 22).
 #
 #   bash docs/results/gpu/make_wheels.sh WHEELS          # on a machine with an index
-#   pip install --no-index --find-links WHEELS -e ".[gpu]"   # there (or WHEELS=... run_gpu_check.sh)
+#   pip install --no-index --find-links WHEELS -e ".[gpu]"   # there
+#
+# Not for the lent GPU machine: its image has Python 3.12 and a CUDA torch that a wheel from here
+# would shadow, and a call carries 64 MiB; make_payload.py builds what it lacks (docs/gpu.md).
 #
 # torch comes as the wheel pip picks here (this machine: the 2.13.0 CPU build, 192 MB); a GPU node
 # needs a CUDA build of torch (several GB), from its own image or downloaded the same way. Measured on 2026-12-03 (Python 3.11, x86_64): 101

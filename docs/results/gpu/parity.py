@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 
 import torch
 
@@ -47,8 +48,11 @@ def quiet_task(name: str):
     return quiet(get_task(name))
 
 
-def trajectory_errors(task: str, num_envs: int, steps: int, device: str) -> dict:
-    """Per step: max |dqpos|, |dqvel|, |dreward|, |dfoot force| between the backends."""
+def trajectory_errors(
+    task: str, num_envs: int, steps: int, device: str, on_row: Callable[[dict], None] | None = None
+) -> dict:
+    """Per step: max |dqpos|, |dqvel|, |dreward|, |dfoot force| between the backends; each step's
+    row goes to ``on_row`` as soon as it is measured (a run cut off keeps the rows it had)."""
     c, warp = pair(task, num_envs, device)
     gen = torch.Generator().manual_seed(7)
     rows = []
@@ -67,6 +71,8 @@ def trajectory_errors(task: str, num_envs: int, steps: int, device: str) -> dict
                 "dones_equal": bool(torch.equal(done_c.cpu(), done_w.cpu())),
             }
         )
+        if on_row is not None:
+            on_row({"stage": "parity", "task": task, "step": len(rows) - 1, **rows[-1]})
     c.close()
     warp.close()
     worst = {k: max(r[k] for r in rows) for k in ("qpos", "qvel", "reward", "foot_force_n")}
@@ -98,14 +104,25 @@ def main() -> None:
     parser.add_argument("--num-envs", type=int, default=4, help="worlds per task [-]")
     parser.add_argument("--steps", type=int, default=10, help="policy steps compared [-]")
     parser.add_argument("--out", default="", help="JSON file for the figures")
+    parser.add_argument(
+        "--tasks", nargs="+", default=["stand", "dance"], help="registered tasks compared"
+    )
+    parser.add_argument("--rows", default="", help="JSON-lines file each step's row is added to")
     args = parser.parse_args()
+
+    def on_row(row: dict) -> None:
+        print(json.dumps(row), flush=True)
+        if args.rows:
+            with open(args.rows, "a") as f:
+                f.write(json.dumps(row) + "\n")
+
     start = time.perf_counter()
     figures = {
         "device": args.device,
         "num_envs": args.num_envs,
         "tasks": {
-            t: trajectory_errors(t, args.num_envs, args.steps, args.device)
-            for t in ("stand", "dance")
+            t: trajectory_errors(t, args.num_envs, args.steps, args.device, on_row)
+            for t in args.tasks
         },
         "wrench": wrench_errors(args.device),
     }
@@ -115,7 +132,14 @@ def main() -> None:
         with open(args.out, "w") as f:
             f.write(text)
     summary = {t: r["max"] for t, r in figures["tasks"].items()}
-    print(json.dumps({"max": summary, "wrench_acc_diff": figures["wrench"]["max_abs_diff"]}))
+    on_row(
+        {
+            "stage": "parity",
+            "max": summary,
+            "wrench_acc_diff": figures["wrench"]["max_abs_diff"],
+            "seconds": figures["seconds"],
+        }
+    )
 
 
 if __name__ == "__main__":

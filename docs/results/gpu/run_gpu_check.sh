@@ -1,96 +1,166 @@
 #!/usr/bin/env bash
-# One prepared check of the MuJoCo Warp backend on a CUDA GPU (issue 22). Writes every figure
-# under $OUT; prints a summary at the end. Nothing here has been run on a GPU yet: the figures are
-# to be measured.
+# One GPU visit's check of the MuJoCo Warp backend (issues 22, 35), on a BARE machine of the lent
+# image: its python3 (3.12, CUDA torch, numpy, scipy, onnx, tensorboard), no index, no .venv.
+# docs/gpu.md ("A GPU visit") gives the calls minute by minute.
 #
-#   OUT=/path/to/out bash docs/results/gpu/run_gpu_check.sh
+#   .venv/bin/python docs/results/gpu/make_payload.py          # here, once: .gpu_payload/py3.12/
+#   device call i (carry .gpu_payload/py3.12/call<i>):  bash docs/results/gpu/run_gpu_check.sh
 #
-# Needs: the repository's virtual environment (.venv) with the gpu extra
-#   (.venv/bin/pip install -e ".[gpu]"), or WHEELS=/folder/of/wheels for an offline install
-#   (bash docs/results/gpu/make_wheels.sh WHEELS on a machine with an index: 873 MB, docs/gpu.md).
-# Budget: about 9 minutes wall clock (stage limits below: 120 + 90 + 90 + 240 s, plus start-up).
+# Every call runs this same command. It first stashes the part it carried in $A2CF_PAYLOAD_DIR
+# (/tmp/a2cf_payload, which lives as long as the machine: 30 s warm after each call). Until every
+# part is there it says which are missing and exits 0. With all parts it unpacks them, installs
+# the wheels with pip --target (no second torch), and runs the stages in order, each under its
+# time limit, each writing its rows to $OUT/results.jsonl as they are measured:
+#   compile (Warp kernels once) | warp (env alone and end to end, 4096/8192 envs, CUDA events) |
+#   parity (stand and backflip, 64 envs, 20 steps, vs MuJoCo C) | train (20 iterations, 4096
+#   envs) | mujoco (MuJoCo C, 1024 envs)
+# $OUT gets 8 files, flat: summary.txt results.jsonl gpu_usage.csv and one log per stage.
+# DEVICE=cpu and the sizes below make the CPU dry run (tests/test_gpu_dry_run.py).
 set -uo pipefail
 cd "$(dirname "$0")/../../.."
+REPO=$PWD
 : "${OUT:?set OUT to the folder for the figures}"
 mkdir -p "$OUT"
-PY=.venv/bin/python
-if [ -n "${WHEELS:-}" ]; then
-  .venv/bin/pip install -q --no-index --find-links "$WHEELS" -e ".[gpu]" 2>&1 | tail -3
+STORE=${A2CF_PAYLOAD_DIR:-/tmp/a2cf_payload}
+DEVICE=${DEVICE:-cuda}                          # Warp's device (and the learner's: cuda:0 / cpu)
+WARP_SIZES=${WARP_SIZES:-4096 8192}             # envs of the warp stage [-]
+WARP_STEPS=${WARP_STEPS:-50}                    # timed env steps per size [-]
+WARP_ITERATIONS=${WARP_ITERATIONS:-2}           # timed training iterations per size [-]
+COMPILE_ENVS=${COMPILE_ENVS:-8}                 # envs of the compile stage [-]
+PARITY_TASKS=${PARITY_TASKS:-stand backflip}    # dance needs Pinocchio, which is not carried
+PARITY_ENVS=${PARITY_ENVS:-64}                  # worlds per parity task [-]
+PARITY_STEPS=${PARITY_STEPS:-20}                # policy steps compared [-]
+TRAIN_ENVS=${TRAIN_ENVS:-4096}                  # envs of the training stage [-]
+TRAIN_ITERATIONS=${TRAIN_ITERATIONS:-20}        # training iterations [-]
+MUJOCO_ENVS=${MUJOCO_ENVS:-1024}                # envs of the MuJoCo C stage [-]
+MUJOCO_STEPS=${MUJOCO_STEPS:-10}                # timed steps per chunk (3 chunks) [-]
+MUJOCO_THREADS=${MUJOCO_THREADS:-0}             # MuJoCo C threads, 0 = all cores [-]
+LIMIT_COMPILE_S=${LIMIT_COMPILE_S:-120}         # each stage's time limit [s]
+LIMIT_WARP_S=${LIMIT_WARP_S:-75}
+LIMIT_PARITY_S=${LIMIT_PARITY_S:-40}
+LIMIT_TRAIN_S=${LIMIT_TRAIN_S:-60}
+LIMIT_MUJOCO_S=${LIMIT_MUJOCO_S:-30}
+SUMMARY=$OUT/summary.txt
+RESULTS=$OUT/results.jsonl
+say() { echo "$*" | tee -a "$SUMMARY"; }
+
+# 1. Stash the carried part. A warm machine may keep the ignored folders of earlier calls beside
+#    this call's (the newest): every part of the newest's payload goes in; a store of another
+#    payload is emptied first.
+newest=$(ls -td .gpu_payload/*/call*/ 2>/dev/null | head -1)
+if [ -n "$newest" ]; then
+  id=$(cat "$newest/payload.id")
+  if [ "$(cat "$STORE/payload.id" 2>/dev/null)" != "$id" ]; then
+    rm -rf "$STORE" && mkdir -p "$STORE/parts"
+    cp "$newest/payload.id" "$newest/parts.sha256" "$STORE/"
+  fi
+  for folder in .gpu_payload/*/call*/; do
+    [ "$(cat "$folder/payload.id")" = "$id" ] || continue
+    for part in "$folder"payload.tar.xz.*; do
+      name=$(basename "$part")
+      cmp -s "$part" "$STORE/parts/$name" || cp "$part" "$STORE/parts/$name"
+    done
+  done
+  say "stashed $newest of payload $id in $STORE ($(du -sh "$STORE/parts" | cut -f1))"
 fi
-# Warp compiles its kernels for the GPU on first use (minutes); keep the cache with the run.
-export WARP_CACHE_PATH="${WARP_CACHE_PATH:-$OUT/warp_cache}"
+[ -f "$STORE/parts.sha256" ] || { say "no payload in $STORE and none carried (see docs/gpu.md)"; exit 2; }
+missing=$(awk '{print $2}' "$STORE/parts.sha256" | while read -r p; do
+  [ -f "$STORE/parts/$p" ] || echo "$p"; done)
+if [ -n "$missing" ]; then
+  say "waiting for: $(echo $missing) (next call carries the next part; machine warm for 30 s)"
+  exit 0
+fi
+
+# 2. Unpack and install once per machine (a rerun on the warm machine starts at the stages).
+if [ ! -f "$STORE/installed" ]; then
+  start=$SECONDS
+  (cd "$STORE/parts" && sha256sum -c --quiet ../parts.sha256) || { say "a part is corrupt"; exit 3; }
+  cat "$STORE"/parts/payload.tar.xz.* | python3 -c "
+import sys, tarfile
+tarfile.open(fileobj=sys.stdin.buffer, mode='r|xz').extractall(sys.argv[1], filter='data')
+" "$STORE/unpacked" || { say "unpacking failed"; exit 3; }
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    --target "$STORE/site" "$STORE"/unpacked/wheels/*.whl 2>&1 | tee -a "$SUMMARY"
+  [ "${PIPESTATUS[0]}" -eq 0 ] || { say "pip install failed"; exit 3; }
+  touch "$STORE/installed"
+  say "unpacked and installed in $((SECONDS - start)) s"
+fi
+export PYTHONPATH=$REPO:$STORE/site
+export A2CF_G1_DESCRIPTION_DIR=$STORE/unpacked/g1_description
+export WARP_CACHE_PATH=${WARP_CACHE_PATH:-$STORE/warp_cache}  # kept while the machine is warm
+export PYTHONUNBUFFERED=1
+export GIT_PYTHON_REFRESH=quiet                  # rsl-rl imports GitPython; git may be absent
+[ "$DEVICE" = cpu ] && export CUDA_VISIBLE_DEVICES=""
+LEARNER=$([ "$DEVICE" = cpu ] && echo cpu || echo cuda:0)
+
+{
+  date -u
+  git rev-parse HEAD 2>/dev/null || echo "no git here"
+  [ "$DEVICE" = cpu ] || nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
+  python3 -c "
+import sys, torch, mujoco, warp, mujoco_warp, rsl_rl
+print('python', sys.version.split()[0], 'torch', torch.__version__, 'cuda', torch.cuda.is_available(),
+      'mujoco', mujoco.__version__, 'warp', warp.__version__, 'mujoco_warp', mujoco_warp.__version__)
+print('torch from', torch.__file__)"
+} 2>&1 | tee -a "$SUMMARY"
+
 status=0
-run() {  # run NAME LIMIT_S COMMAND...: log to $OUT/NAME.log, record the exit code
+stage() {  # stage NAME LIMIT_S COMMAND...: log to $OUT/NAME.log, record the exit code
   local name=$1 limit=$2
   shift 2
-  echo "== $name (limit ${limit}s): $*" | tee -a "$OUT/summary.txt"
+  say "== $name (limit ${limit}s)"
   local start=$SECONDS
-  timeout "$limit" "$@" >"$OUT/$name.log" 2>&1
+  timeout -k 5 "$limit" "$@" >"$OUT/$name.log" 2>&1
   local rc=$?
-  echo "   exit $rc after $((SECONDS - start)) s" | tee -a "$OUT/summary.txt"
+  local note=""
+  [ "$rc" -eq 124 ] || [ "$rc" -eq 137 ] && note=" (cut off by its limit; its rows so far are kept)"
+  say "   exit $rc after $((SECONDS - start)) s$note"
   [ "$rc" -eq 0 ] || status=1
 }
 
-{ nvidia-smi; $PY -c "import mujoco_warp, warp, mujoco, torch; print('mujoco', mujoco.__version__, 'mujoco_warp', mujoco_warp.__version__, 'warp', warp.__version__, 'torch', torch.__version__)"; } >"$OUT/machine.txt" 2>&1
-git rev-parse HEAD >>"$OUT/machine.txt" 2>&1
-
-# 1. Parity on the GPU against MuJoCo C (same states and actions; the CUDA graph replays from the
-#    second step on). The slow Warp tests on cuda are left to a longer lease:
-#    env A2CF_WARP_DEVICE=cuda .venv/bin/pytest -q -m slow tests/test_warp_physics.py
-run parity_cuda 120 $PY docs/results/gpu/parity.py --device cuda --num-envs 64 --steps 20 \
-  --out "$OUT/parity_cuda.json"
-
-# 2. Env throughput (policy steps of all envs per second): stand on MuJoCo C and Warp at 1024
-#    worlds in the same run, Warp alone at 4096 and 8192; walk-flat on Warp at 4096 and 8192.
-run bench_env_stand 90 .venv/bin/a2cf-mb bench env --task stand --backends mujoco warp \
-  --device cuda --num-envs 1024 4096 8192 --link-collisions on --num-steps 30 --repeats 1 \
-  --num-threads 16 --output "$OUT/bench_env_stand.json"
-run bench_env_walk_flat 90 .venv/bin/a2cf-mb bench env --task walk-flat --backends warp \
-  --device cuda --num-envs 4096 8192 --link-collisions on --num-steps 30 --repeats 1 \
-  --output "$OUT/bench_env_walk_flat.json"
-
-# 3. walk-flat trained for the remaining minutes at 4096 envs (physics and learner on the GPU):
-#    its metrics.json gives the end-to-end env steps/s and the iteration time per iteration,
-#    gpu_usage.csv the GPU memory, evals.jsonl the policy alone (assistance off, 256 fresh envs)
-#    every 20 iterations.
-nvidia-smi --query-gpu=timestamp,memory.used,utilization.gpu --format=csv -l 5 \
-  >"$OUT/gpu_usage.csv" 2>/dev/null &
-SMI=$!
-run train_walk_flat 240 .venv/bin/a2cf-mb train --task walk-flat --env-backend warp \
-  --env-device cuda --num-envs 4096 --device cuda:0 --iterations 60 --save-interval 20 \
-  --eval-interval 20 --eval-num-envs 256 --out "$OUT/runs" --run-name walk_flat_warp_4096
-kill "$SMI" 2>/dev/null
+if [ "$DEVICE" != cpu ]; then
+  nvidia-smi --query-gpu=timestamp,memory.used,utilization.gpu --format=csv -l 2 \
+    >"$OUT/gpu_usage.csv" 2>/dev/null &
+  SMI=$!
+fi
+S=docs/results/gpu/stages.py
+# shellcheck disable=SC2086  # WARP_SIZES and PARITY_TASKS are lists
+stage compile "$LIMIT_COMPILE_S" python3 -u $S compile --device "$DEVICE" \
+  --num-envs "$COMPILE_ENVS" --parity-tasks $PARITY_TASKS --rows "$RESULTS"
+stage warp "$LIMIT_WARP_S" python3 -u $S warp --device "$DEVICE" --sizes $WARP_SIZES \
+  --steps "$WARP_STEPS" --iterations "$WARP_ITERATIONS" --run-root "$STORE/runs" --rows "$RESULTS"
+stage parity "$LIMIT_PARITY_S" python3 -u docs/results/gpu/parity.py --device "$DEVICE" \
+  --tasks $PARITY_TASKS --num-envs "$PARITY_ENVS" --steps "$PARITY_STEPS" --rows "$RESULTS"
+rm -rf "$STORE/runs/check"
+stage train "$LIMIT_TRAIN_S" python3 -u -m a2cf_mb train --task walk-flat --env-backend warp \
+  --env-device "$DEVICE" --num-envs "$TRAIN_ENVS" --device "$LEARNER" \
+  --iterations "$TRAIN_ITERATIONS" --save-interval "$TRAIN_ITERATIONS" --eval-interval 0 \
+  --no-export-onnx --out "$STORE/runs" --run-name check
+python3 $S train-rows --run "$STORE/runs/check" --rows "$RESULTS" >/dev/null 2>>"$OUT/train.log"
+stage mujoco "$LIMIT_MUJOCO_S" python3 -u $S mujoco --num-envs "$MUJOCO_ENVS" \
+  --steps "$MUJOCO_STEPS" --num-threads "$MUJOCO_THREADS" --rows "$RESULTS"
+[ -n "${SMI:-}" ] && kill "$SMI" 2>/dev/null
 
 {
-  echo "== figures"
-  $PY - "$OUT" <<'EOF'
-import json, pathlib, sys
-out = pathlib.Path(sys.argv[1])
-for name in ("parity_cuda.json", "bench_env_stand.json", "bench_env_walk_flat.json"):
-    p = out / name
-    if not p.is_file():
-        print(name, "missing")
-        continue
-    d = json.loads(p.read_text())
-    if "tasks" in d:
-        print("parity max errors:", {t: r["max"] for t, r in d["tasks"].items()},
-              "wrench acc diff:", d["wrench"]["max_abs_diff"])
-    else:
-        for key, r in d["sizes"].items():
-            print(key, {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()})
-m = out / "runs" / "walk_flat_warp_4096" / "metrics.json"
-if m.is_file():
-    its = json.loads(m.read_text())["iterations"]
-    print("train: iterations", len(its), "last", {k: its[-1][k] for k in list(its[-1])[:8]})
-    evals = out / "runs" / "walk_flat_warp_4096" / "evals.jsonl"
-    for line in evals.read_text().splitlines() if evals.is_file() else []:
-        print("alone:", json.loads(line))
-    mem = out / "gpu_usage.csv"
-    if mem.is_file():
-        used = [int(r.split(",")[1].split()[0]) for r in mem.read_text().splitlines()[1:] if "MiB" in r]
-        print("GPU memory used, max:", max(used, default=0), "MiB")
-else:
-    print("train: no metrics.json (see train_walk_flat.log)")
+  echo "== figures ($(wc -l <"$RESULTS" 2>/dev/null || echo 0) rows in results.jsonl)"
+  python3 - "$RESULTS" <<'EOF'
+import json, sys
+rows = [json.loads(x) for x in open(sys.argv[1])] if __import__("os").path.exists(sys.argv[1]) else []
+for r in rows:
+    s = r["stage"]
+    if s == "compile":
+        print(f"compile {r['task']}: build {r['build_s']:.1f} s, first step {r['first_step']['wall_s']:.1f} s")
+    elif s == "warp":
+        rate = r.get("cuda_event_env_steps_per_s", r["wall_env_steps_per_s"])
+        print(f"warp {r['what']} N={r['num_envs']}: {rate:.0f} env steps/s")
+    elif s == "parity" and "max" in r:
+        print("parity max:", r["max"], "wrench acc diff:", r["wrench_acc_diff"])
+    elif s == "mujoco":
+        print(f"mujoco N={r['num_envs']} ({r['threads']} threads): {r['env_steps_per_s']:.0f} env steps/s")
+its = [r for r in rows if r["stage"] == "train" and "iteration" in r]
+if its:
+    print(f"train: {len(its)} iterations, last {its[-1]}")
 EOF
-} 2>&1 | tee -a "$OUT/summary.txt"
+} 2>&1 | tee -a "$SUMMARY"
+say "done: exit $status"
 exit "$status"
