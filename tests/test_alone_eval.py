@@ -170,3 +170,17 @@ def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_pa
     (confirmation,) = confirmations_at(tmp_path, 3)
     assert confirmation["num_envs"] == 128 and not confirmation["target_reached"]
     assert confirmations_at(tmp_path, 4) == []
+
+
+def test_a_live_runs_metric_rows_are_read_from_its_jsonl_or_the_records_gzip(tmp_path) -> None:
+    import gzip
+
+    from rl.studies.learning import read_metric_rows
+
+    rows = [{"iteration": i, "env_steps": 3072} for i in range(3)]
+    text = "".join(json.dumps(r) + "\n" for r in rows)
+    (tmp_path / "metrics.jsonl").write_text(text)
+    assert read_metric_rows(tmp_path) == rows
+    (tmp_path / "metrics.jsonl").unlink()
+    (tmp_path / "metrics.jsonl.gz").write_bytes(gzip.compress(text.encode()))
+    assert read_metric_rows(tmp_path) == rows

@@ -19,7 +19,13 @@ import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.evaluation.alone import curve_arrays
-from rl.runs.folder import CHECKPOINT_EVALS_LOG, EVALS_LOG, METRICS_FILE, load_run_config
+from rl.runs.folder import (
+    CHECKPOINT_EVALS_LOG,
+    EVALS_LOG,
+    METRICS_FILE,
+    METRICS_LOG,
+    load_run_config,
+)
 from rl.tasks.registry import resolve_task
 from rl.training.config import PPOConfig
 
@@ -38,14 +44,24 @@ def read_evals(run_dir: Path) -> list[dict[str, Any]]:
 
 
 def read_metric_rows(run_dir: Path) -> list[dict[str, Any]]:
-    """The run's per-iteration rows of ``metrics.json`` (or of a committed ``metrics.json.gz``;
-    none for a run still training)."""
+    """The run's per-iteration rows of ``metrics.json`` (or of a committed ``metrics.json.gz``);
+    for a run still training (or its study record), the rows the runner appends to
+    ``metrics.jsonl`` (or a committed ``metrics.jsonl.gz``)."""
     path = run_dir / METRICS_FILE
     if path.is_file():
         return json.loads(path.read_text()).get("iterations", [])
     packed = path.with_name(path.name + ".gz")
     if packed.is_file():
         return json.loads(gzip.decompress(packed.read_bytes())).get("iterations", [])
+    live = run_dir / METRICS_LOG
+    for text in (
+        live.read_text() if live.is_file() else None,
+        gzip.decompress(live.with_name(live.name + ".gz").read_bytes()).decode()
+        if live.with_name(live.name + ".gz").is_file()
+        else None,
+    ):
+        if text is not None:
+            return [json.loads(line) for line in text.splitlines() if line.strip()]
     return []
 
 
