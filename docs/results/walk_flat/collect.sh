@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Copy the walk_flat runs' records into this folder, with each run's last checkpoint so that a
+# later session continues it (restore_runs.sh docs/results/walk_flat runs/walk_flat, then
+# `a2cf-mb train --resume runs/walk_flat/<run>`), and draw the study: study.json / study.png
+# (env steps to the target, survival and velocity error alone against env steps) and
+# lifecycle_walk-flat.png (A2CF's bound and applied force beside the evaluations alone).
+# Usage: collect.sh [RUN_PARENT]   (default runs/walk_flat)
+set -euo pipefail
+DST=$(dirname "$0")
+SRC=${1:-runs/walk_flat}
+KEEP_LAST=1 bash "$DST/../copy_runs.sh" "$SRC" "$DST"
+runs=()
+for rec in "$DST"/walkflat_*_128_s*/; do
+  [ -f "$rec/checkpoints/last.pt" ] && runs+=("$rec")
+done
+python "$DST/../a2cf_lifecycle/summarise.py" "${runs[@]}" --out "$DST"
