@@ -55,7 +55,7 @@ from optimal_control.files import (
     recover_folder,
 )
 from optimal_control.reference import Reference
-from optimal_control.wrench_qp import WrenchProfile
+from optimal_control.wrench_profile import WrenchProfile
 from robots import g1
 
 ARTIFACT_KIND = "a2cf-mb/oracle"

@@ -31,9 +31,9 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pinocchio as pin
 from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation, Slerp
@@ -42,7 +42,18 @@ from optimal_control.files import read_npz
 from optimal_control.reference import NQ, Reference
 from optimal_control.validation import require_finite_fields
 from robots import g1
-from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
+
+if TYPE_CHECKING:
+    from robots.pinocchio_model import G1Pinocchio
+
+
+def _robot(robot: G1Pinocchio | None) -> G1Pinocchio:
+    """``robot``, or the G1's Pinocchio model. Pinocchio is imported where a function needs it:
+    reading an artifact and resampling (:func:`resample`) need none, and the lent GPU machine has
+    none (docs/gpu.md, "A GPU visit")."""
+    from robots.pinocchio_model import build_pinocchio_model
+
+    return robot or build_pinocchio_model()
 
 
 class ClipError(ValueError):
@@ -142,7 +153,7 @@ def validate_clip(
     source: str = "clip",
 ) -> np.ndarray:
     """Check a raw clip (T, 36) and return it with unit quaternions. Raises :class:`ClipError`."""
-    robot = robot or build_pinocchio_model()
+    robot = _robot(robot)
     rows = np.asarray(rows, dtype=float)
     if rows.ndim != 2 or rows.shape[1] != NQ:
         raise ClipError(
@@ -242,7 +253,9 @@ def differentiate(
 
     See the module docstring for the rule (manifold central differences + Savitzky-Golay).
     """
-    robot = robot or build_pinocchio_model()
+    import pinocchio as pin
+
+    robot = _robot(robot)
     model = robot.model
     num = q.shape[0]
     if num < 2:
@@ -264,7 +277,9 @@ def differentiate(
 
 def sole_corner_heights_m(q: np.ndarray, robot: G1Pinocchio | None = None) -> np.ndarray:
     """Lowest sole-corner height per frame and sole (T, 2) and sole origins (T, 2, 3) [m]."""
-    robot = robot or build_pinocchio_model()
+    import pinocchio as pin
+
+    robot = _robot(robot)
     data = robot.data()
     corners = g1.sole_corners_m()
     heights = np.empty((q.shape[0], 2))
@@ -450,7 +465,7 @@ def reference_from_configurations(
     (:func:`estimate_ground_m`) is at z = 0. ``extras["lowest_sole_m"]`` (T,) holds the lowest sole
     corner per frame after the shift [m].
     """
-    robot = robot or build_pinocchio_model()
+    robot = _robot(robot)
     q = np.array(q, dtype=float)
     heights, _ = sole_corner_heights_m(q, robot)
     if cfg.ground_to_lowest_sole:
@@ -512,7 +527,7 @@ def reference_from_clip_rows(
     resample to ``cfg.target_fps``, ground, differentiate, contacts, plausibility), for callers
     that read other layouts; ``source`` names the input in error messages.
     """
-    robot = robot or build_pinocchio_model()
+    robot = _robot(robot)
     rows = validate_clip(rows, fps, cfg, robot, source=source)
     replaced = 0
     if cfg.despike:

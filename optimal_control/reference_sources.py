@@ -37,9 +37,9 @@ import hashlib
 import re
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pinocchio as pin
 
 from optimal_control.files import read_npz
 from optimal_control.motion_clip import (
@@ -51,7 +51,9 @@ from optimal_control.motion_clip import (
 from optimal_control.reference import NQ, Reference
 from robots import g1
 from robots.conventions import quat_wxyz_to_xyzw
-from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
+
+if TYPE_CHECKING:
+    from robots.pinocchio_model import G1Pinocchio
 
 TRACK_PHASE = "track"
 """Name of the single phase of a reference loaded from a clip file."""
@@ -407,6 +409,10 @@ def wbt_joint_order(
             f"{label}: the joint order cannot be told from a pelvis alone (no other bodies in "
             "'body_pos_w'); pass joint_order='isaaclab' (whole_body_tracking) or 'urdf' (mjlab)."
         )
+    import pinocchio as pin  # here: loading an artifact needs no Pinocchio
+
+    from robots.pinocchio_model import build_pinocchio_model
+
     robot = robot or build_pinocchio_model()
     data = robot.data()
     links = [f for f, frame in enumerate(robot.model.frames) if frame.type == pin.BODY]

@@ -151,17 +151,40 @@ def _world(spec: mujoco.MjSpec, cfg: MujocoModelConfig) -> None:
         )
 
 
+def _kinematic_model(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """``spec`` compiled for kinematics only: no geom, no mesh to load or process."""
+    kinematic = spec.copy()
+    for geom in list(kinematic.geoms):
+        kinematic.delete(geom)
+    for mesh in list(kinematic.meshes):
+        kinematic.delete(mesh)
+    return kinematic.compile()
+
+
+def sole_corner_heights_mj(qpos: np.ndarray, spec: mujoco.MjSpec | None = None) -> np.ndarray:
+    """Lowest sole-corner height per frame and sole (T, 2) [m] at MuJoCo configurations ``qpos``
+    (T, nq): the heights of :func:`optimal_control.motion_clip.sole_corner_heights_m` (a test
+    checks they agree), computed with MuJoCo alone, so the tracking task's motion library needs no
+    Pinocchio (the lent GPU machine has none)."""
+    model = _kinematic_model(spec if spec is not None else build_mujoco_spec())
+    data = mujoco.MjData(model)
+    corners = g1.sole_corners_m()
+    heights = np.empty((qpos.shape[0], len(g1.SOLE_FRAMES)))
+    for t in range(qpos.shape[0]):
+        data.qpos[:] = qpos[t]
+        mujoco.mj_kinematics(model, data)
+        for s, name in enumerate(g1.SOLE_FRAMES):
+            site = data.site(name)
+            heights[t, s] = (corners @ site.xmat.reshape(3, 3).T + site.xpos)[:, 2].min()
+    return heights
+
+
 def standing_qpos(spec: mujoco.MjSpec) -> np.ndarray:
     """The standing configuration (nq,) of a G1 spec with its sole sites: the joints at
     :data:`robots.g1.STAND_JOINT_POS_RAD`, the pelvis upright above the origin and lowered until
     the lower sole touches z = 0. The same pose as the Pinocchio model's ``q_stand`` (a test
     checks it), computed with MuJoCo alone, so the simulator needs no Pinocchio."""
-    kinematic = spec.copy()
-    for geom in list(kinematic.geoms):
-        kinematic.delete(geom)  # kinematics only: no mesh to load or process
-    for mesh in list(kinematic.meshes):
-        kinematic.delete(mesh)
-    model = kinematic.compile()
+    model = _kinematic_model(spec)
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
     data.qpos[3] = 1.0  # free joint: identity orientation (w, x, y, z)

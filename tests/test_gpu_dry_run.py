@@ -21,6 +21,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tarfile
 import time
 import urllib.request
 from pathlib import Path
@@ -95,6 +96,11 @@ TINY = {
     "LIMIT_PARITY_S": "300",
     "LIMIT_TRAIN_S": "300",
     "LIMIT_MUJOCO_S": "120",
+    "BACKFLIP_ENVS": "4",
+    "BACKFLIP_ITERATIONS": "2",
+    "BACKFLIP_EVAL_INTERVAL": "1",
+    "BACKFLIP_EVAL_ENVS": "4",
+    "LIMIT_BACKFLIP_S": "1200",
 }
 """Sizes and limits of the dry run (the GPU run's defaults are in run_gpu_check.sh)."""
 
@@ -172,6 +178,10 @@ def test_gpu_visit_dry_run(tmp_path: Path) -> None:
         pytest.skip("PyPI is unreachable: the payload's wheels cannot be downloaded")
     start = time.perf_counter()
     version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    reference = REPO / make_payload.REFERENCE
+    if not (reference / "oracle.json").is_file():  # the backflip stage's reference: about 3 min
+        subprocess.run([sys.executable, "-m", "a2cf_mb", "solve-backflip", "--oracle-out",
+                        str(reference), "--no-oracle-progress"], check=True, cwd=REPO)  # fmt: skip
     subprocess.run([sys.executable, str(GPU / "make_payload.py"), "--python-version", version],
                    check=True, cwd=REPO)  # fmt: skip
     plan = json.loads((REPO / ".gpu_payload" / f"py{version}" / "plan.json").read_text())
@@ -205,7 +215,7 @@ def test_gpu_visit_dry_run(tmp_path: Path) -> None:
             assert "waiting for" in summary
             continue
         names = {f.name for f in files}
-        logs = {"compile.log", "warp.log", "parity.log", "train.log", "mujoco.log"}
+        logs = {"checks.log", "backflip.log", "backflip_run.tar"}
         assert {"summary.txt", "results.jsonl"} | logs <= names, names
         rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
         stages = {(r["stage"], r.get("what", "")) for r in rows}
@@ -215,6 +225,15 @@ def test_gpu_visit_dry_run(tmp_path: Path) -> None:
         assert any(r["stage"] == "parity" and "max" in r for r in rows)
         trained = [r for r in rows if r["stage"] == "train" and "iteration" in r]
         assert len(trained) == int(TINY["TRAIN_ITERATIONS"])
+        # the backflip by tracking the carried artifact, in the image's packages (no Pinocchio)
+        flips = [r for r in rows if r["stage"] == "backflip" and "iteration" in r]
+        assert len(flips) == int(TINY["BACKFLIP_ITERATIONS"]), summary
+        evals = [r for r in rows if r["stage"] == "backflip_eval"]
+        assert evals and all("flips_landed" in r for r in evals), evals
+        with tarfile.open(out / "backflip_run.tar") as tar:
+            packed = {m.name.partition("/")[2] for m in tar.getmembers()}
+        assert {"config.json", "evals.jsonl", "metrics.jsonl", "checkpoints/last.pt"} <= packed
+        assert not any(n.startswith("checkpoints/model_") for n in packed), packed
         assert "done: exit 0" in summary
         # the image's torch, never one from the payload
         assert not (tmp_path / "store" / "site" / "torch").exists()

@@ -164,6 +164,17 @@ def test_standing_keyframe_is_the_pinocchio_stand_pose(g1_pin, g1_mj):
     assert min(data.site(name).xpos[2] for name in g1.SOLE_FRAMES) == pytest.approx(0, abs=1e-12)
 
 
+def test_sole_corner_heights_of_mujoco_are_pinocchios(g1_pin, rng):
+    """The motion library's floor shift reads MuJoCo's sole-corner heights (no Pinocchio on the
+    GPU machine): the same as Pinocchio's, at the stand and at random poses."""
+    from optimal_control.motion_clip import sole_corner_heights_m
+    from robots.mujoco_model import sole_corner_heights_mj
+
+    q = np.stack([g1_pin.q_stand] + [random_state(g1_pin, rng)[0] for _ in range(5)])
+    heights_pin, _ = sole_corner_heights_m(q, g1_pin)
+    np.testing.assert_allclose(sole_corner_heights_mj(pin_to_mj_qpos(q)), heights_pin, atol=1e-10)
+
+
 def test_missing_description_gives_an_actionable_error(monkeypatch, tmp_path):
     monkeypatch.setenv("A2CF_G1_DESCRIPTION_DIR", str(tmp_path))
     with pytest.raises(RobotAssetError, match="A2CF_G1_DESCRIPTION_DIR"):

@@ -7,12 +7,16 @@ tree per call, the tracked files included. This script, run where PyPI is reacha
     .gpu_payload/py3.12/call1/{payload.tar.xz.01, parts.sha256, payload.id}
     .gpu_payload/py3.12/call2/{payload.tar.xz.02, parts.sha256, payload.id}
     ...
+    .gpu_payload/py3.12/call<last>/backflip_oracle/   (the backflip stage's reference)
 
 One folder per device call, each small enough to travel beside the working tree (``carry``).
 The tarball holds the wheels of :data:`PAYLOAD_PACKAGES` (re-zipped without compression, so xz
 compresses their contents) and the G1 files the MuJoCo model loads (the URDF and the meshes it
 names: 15 MB of the 125 MB example-robot-data). ``run_gpu_check.sh`` stashes each call's part on
 the machine and, once every part is there, unpacks and installs them with ``pip --target``.
+The last call also carries a copy of the ``solve-backflip`` artifact (``--reference``, 1 MB,
+outside the tarball: a new solve changes no part), the reference of the check's backflip stage;
+it is solved here because the TO needs Pinocchio and CasADi, which the lent image lacks.
 
     .venv/bin/python docs/results/gpu/make_payload.py                    # for the GPU machine
     .venv/bin/python docs/results/gpu/make_payload.py --python-version 3.11   # the CPU dry run
@@ -36,6 +40,12 @@ import zipfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[3]
+
+REFERENCE = "runs/backflip_track/oracle"
+"""The backflip stage's reference, as docs/results/backflip_track/run.sh solves it."""
+
+REFERENCE_CARRY = "backflip_oracle"
+"""Its folder in the last call's folder (``run_gpu_check.sh`` looks for it there)."""
 
 PAYLOAD_PACKAGES = (
     "mujoco",
@@ -198,6 +208,25 @@ def split(tarball: Path, part_bytes: int, out: Path, payload_id: str) -> list[Pa
     return folders
 
 
+def add_reference(plan: dict, reference: Path | None) -> dict:
+    """``plan`` with a copy of the artifact ``reference`` in its last call's folder (none left
+    there when ``reference`` is None), that call's ``carry_bytes`` counting it."""
+    last = REPO / plan["calls"][-1]["carry"]
+    shutil.rmtree(last / REFERENCE_CARRY, ignore_errors=True)
+    plan["reference"] = None
+    if reference is not None:
+        if not (reference / "oracle.json").is_file():
+            raise SystemExit(
+                f"{reference} is no solve-backflip artifact (no oracle.json): solve it first, "
+                f"`a2cf-mb solve-backflip --oracle-out {REFERENCE} --no-oracle-progress` (about "
+                "3 min), or pass --reference '' to leave the backflip stage out"
+            )
+        shutil.copytree(reference, last / REFERENCE_CARRY)
+        plan["reference"] = str(reference)
+    plan["calls"][-1]["carry_bytes"] = sum(p.stat().st_size for p in last.rglob("*") if p.is_file())
+    return plan
+
+
 def make_payload(python_version: str, out_root: Path, headroom_bytes: int) -> dict:
     """Build (or reuse) the payload for CPython ``python_version`` under ``out_root``; returns
     the plan: the folder each call carries and its size beside the working tree."""
@@ -252,6 +281,11 @@ def main() -> None:
     parser.add_argument("--python-version", default="3.12", help="CPython of the target [X.Y]")
     parser.add_argument("--out", default=str(REPO / ".gpu_payload"), help="ignored folder")
     parser.add_argument(
+        "--reference",
+        default=str(REPO / REFERENCE),
+        help="solve-backflip artifact the last call carries for the backflip stage; '': none",
+    )
+    parser.add_argument(
         "--headroom-mib",
         type=float,
         default=2.0,
@@ -265,6 +299,10 @@ def main() -> None:
         if ignored.returncode != 0:
             raise SystemExit(f"{out_root} is not ignored by git: wheels must never be committed")
     plan = make_payload(args.python_version, out_root, int(args.headroom_mib * 2**20))
+    plan = add_reference(plan, Path(args.reference).resolve() if args.reference else None)
+    (out_root / f"py{args.python_version}" / "plan.json").write_text(
+        json.dumps(plan, indent=1) + "\n"
+    )
     tree = travelling_tree_bytes()
     print(
         f"payload {plan['payload_id']}: {plan['tarball_bytes'] / 2**20:.1f} MiB in "

@@ -10,6 +10,7 @@ the host's clock alone.
     python3 -u docs/results/gpu/stages.py warp --device cuda --sizes 4096 8192 --rows results.jsonl
     python3 -u docs/results/gpu/stages.py mujoco --num-envs 1024 --rows results.jsonl
     python3 -u docs/results/gpu/stages.py train-rows --run RUN_DIR --rows results.jsonl
+    python3 -u docs/results/gpu/stages.py train-rows --row-stage backflip --run RUN_DIR --rows ...
 """
 
 from __future__ import annotations
@@ -192,15 +193,23 @@ def mujoco_speed(args: argparse.Namespace) -> None:
 
 
 def train_rows(args: argparse.Namespace) -> None:
-    """The run's per-iteration rows (``metrics.jsonl``, written live) into the results."""
+    """The run's per-iteration rows (``metrics.jsonl``, written live) into the results, under
+    ``args.row_stage``, and its evaluations alone (``evals.jsonl``, with the task's metrics: a
+    flip's ``flips_landed``) under ``<row_stage>_eval``."""
     path = Path(args.run) / "metrics.jsonl"
     if not path.is_file():
-        append_row(args.rows, {"stage": "train", "error": f"no {path}"})
+        append_row(args.rows, {"stage": args.row_stage, "error": f"no {path}"})
         return
     for line in path.read_text().splitlines():
         row = json.loads(line)
         scalars = {k: v for k, v in row.items() if not isinstance(v, (dict, list))}
-        append_row(args.rows, {"stage": "train", **scalars})
+        append_row(args.rows, {"stage": args.row_stage, **scalars})
+    evals = Path(args.run) / "evals.jsonl"
+    for line in evals.read_text().splitlines() if evals.is_file() else []:
+        row = json.loads(line)
+        metrics = {**row, **row.get("task_metrics", {})}
+        scalars = {k: v for k, v in metrics.items() if not isinstance(v, (dict, list))}
+        append_row(args.rows, {"stage": f"{args.row_stage}_eval", **scalars})
 
 
 def main() -> None:
@@ -221,6 +230,7 @@ def main() -> None:
         p.add_argument("--chunks", type=int, default=3, help="timed chunks (mujoco) [-]")
         p.add_argument("--num-threads", type=int, default=0, help="MuJoCo C threads; 0 all [-]")
         p.add_argument("--run", default="", help="run folder (train-rows)")
+        p.add_argument("--row-stage", default="train", help="stage named in the rows (train-rows)")
         p.add_argument("--run-root", default="", help="folder of the warp stage's run folders")
         p.add_argument("--parity-tasks", nargs="*", default=["stand"], help="quiet (compile)")
     args = parser.parse_args()

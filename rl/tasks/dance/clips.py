@@ -91,12 +91,12 @@ class ClipLibrary:
     @classmethod
     def from_references(cls, names: tuple[str, ...], refs: list, step_dt_s: float) -> ClipLibrary:
         """The library of loaded references (one per name), each at the frame step ``step_dt_s``."""
-        from optimal_control.motion_clip import sole_corner_heights_m
+        # MuJoCo's sole heights, not Pinocchio's (the same, tested): the GPU machine has none
         from robots.conventions import pin_to_mj_qpos, pin_to_mj_qvel
-        from robots.pinocchio_model import build_pinocchio_model
+        from robots.mujoco_model import build_mujoco_spec, sole_corner_heights_mj, standing_qpos
 
-        robot = build_pinocchio_model()
-        stand_floor = sole_corner_heights_m(robot.q_stand[None], robot)[0].min()
+        spec = build_mujoco_spec()
+        stand_floor = sole_corner_heights_mj(standing_qpos(spec)[None], spec).min()
         qpos, qvel, shift, starts, lengths = [], [], [], [], []
         for source, ref in zip(names, refs, strict=True):
             if abs(ref.dt - step_dt_s) > 1e-9:
@@ -104,7 +104,7 @@ class ClipLibrary:
                     f"dance clip '{source}' has frame step {ref.dt} s, the policy step is "
                     f"{step_dt_s} s: resample the clip to {1 / step_dt_s:g} fps"
                 )
-            heights, _ = sole_corner_heights_m(ref.q, robot)
+            heights = sole_corner_heights_mj(pin_to_mj_qpos(ref.q), spec)
             starts.append(sum(lengths))
             lengths.append(ref.q.shape[0])
             qpos.append(pin_to_mj_qpos(ref.q))
