@@ -14,13 +14,18 @@ for rec in "$SRC"/*/; do
     echo "restore_runs: $DST/$name exists; left alone" >&2
     continue
   fi
-  mkdir -p "$DST/$name/checkpoints"
-  cp "$rec/checkpoints/last.pt" "$DST/$name/checkpoints/"
+  # built beside its place and moved there whole: a killed restore leaves no half folder that a
+  # rerun would skip
+  tmp="$DST/.$name.restoring"
+  rm -rf "$tmp"
+  mkdir -p "$tmp/checkpoints"
+  cp "$rec/checkpoints/last.pt" "$tmp/checkpoints/"
   for f in config.json git.json evals.jsonl evals_checkpoints.jsonl warmstart.json; do
-    [ -f "$rec/$f" ] && cp "$rec/$f" "$DST/$name/"
+    if [ -f "$rec/$f" ]; then cp "$rec/$f" "$tmp/"; fi
   done
   for f in curriculum.jsonl metrics.jsonl; do
-    [ -f "$rec/$f.gz" ] && gunzip -c "$rec/$f.gz" > "$DST/$name/$f"
+    if [ -f "$rec/$f.gz" ]; then gunzip -c "$rec/$f.gz" > "$tmp/$f"; fi
   done
+  mv "$tmp" "$DST/$name"
   echo "restore_runs: $DST/$name (resume with a2cf-mb train --resume $DST/$name)"
 done

@@ -54,15 +54,14 @@ def read_metric_rows(run_dir: Path) -> list[dict[str, Any]]:
     if packed.is_file():
         return json.loads(gzip.decompress(packed.read_bytes())).get("iterations", [])
     live = run_dir / METRICS_LOG
-    for text in (
-        live.read_text() if live.is_file() else None,
-        gzip.decompress(live.with_name(live.name + ".gz").read_bytes()).decode()
-        if live.with_name(live.name + ".gz").is_file()
-        else None,
-    ):
-        if text is not None:
-            return [json.loads(line) for line in text.splitlines() if line.strip()]
-    return []
+    packed_live = live.with_name(live.name + ".gz")
+    if live.is_file():
+        text = live.read_text()
+    elif packed_live.is_file():
+        text = gzip.decompress(packed_live.read_bytes()).decode()
+    else:
+        return []
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
 
 
 def _wall_s_at(run_dir: Path, iteration: int) -> float | None:
