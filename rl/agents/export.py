@@ -118,10 +118,22 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
             entry["parts"] = command_parts(env.command_gen, start, width)
         obs_terms.append(entry)
     limits = env.layout.joint_range_rad
-    base, base_columns = "default_pos_rad", {}
+    base, base_columns, feedforward = "default_pos_rad", {}, ""
     if env.task.actions_around_reference:
         base = "command[action_base_command_columns]"
         base_columns = {"action_base_command_columns": reference_joint_columns(env.command_gen)}
+    if env.task.action_feedforward:
+        a, b = reference_joint_columns(env.command_gen)
+        feedforward = (
+            " + kd[i] / kp[i] * command[action_feedforward.joint_vel_command_columns][i]"
+            " + action_feedforward.joint_torque_nm[frame][i] / kp[i]"
+        )
+        base_columns["action_feedforward"] = {
+            "joint_vel_command_columns": [b, b + (b - a)],
+            "joint_torque_nm": env.command_gen.motion.joint_torque_nm.tolist(),
+            "frame": "the reference frame the command's joint_pos_ref block shows (its next "
+            "frame), over the references one after another, each with its held ends",
+        }
     return {
         "format": BUNDLE_FORMAT,
         "task": env.task.name,
@@ -129,7 +141,7 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
             "policy_rate_hz": 1.0 / env.step_dt_s,
             "physics_dt_s": env.physics_dt_s,
             "decimation": env.cfg.decimation,
-            "joint_target": f"target_rad[i] = {base}[i] + action_scale_rad[i] * "
+            "joint_target": f"target_rad[i] = {base}[i]{feedforward} + action_scale_rad[i] * "
             "actions[i], tracked by a PD law tau = kp (target - q) - kd qdot clipped to "
             "+-effort_limit_nm",
             **base_columns,

@@ -89,6 +89,11 @@ class Command(Component, ABC):
         (what ``--warmstart-motion`` clones the motion head onto); None without a reference."""
         return None
 
+    def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor] | None:
+        """Per env, the reference's joint rates (N, 29) [rad/s] and planned joint torques
+        (N, 29) [N m] for the next step (``action_feedforward``); None without them."""
+        return None
+
     def reference_qpos(self) -> np.ndarray | None:
         """Per env, the MuJoCo qpos (N, 36) of the reference frame the robot is on now (with the
         env's floor offset), float64 on the host; None when the task has no reference motion (a

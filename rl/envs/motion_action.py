@@ -23,6 +23,8 @@ class MotionAction(DeclaredState):
         self.device = device
         self.stand_rad = torch.as_tensor(g1.STAND_JOINT_POS_RAD, dtype=torch.float32, device=device)
         self.scale = torch.as_tensor(g1.ACTION_SCALE_RAD, dtype=torch.float32, device=device)
+        self._kd_over_kp = torch.as_tensor(g1.KD / g1.KP, dtype=torch.float32, device=device)
+        self._inv_kp = torch.as_tensor(1.0 / g1.KP, dtype=torch.float32, device=device)
         self.action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
         self.last_action = torch.zeros(num_envs, g1.NUM_JOINTS, device=device)
 
@@ -31,6 +33,12 @@ class MotionAction(DeclaredState):
         ``base_rad`` (N, 29) [rad] (``None``: the standing pose)."""
         self.action = action
         return (self.stand_rad if base_rad is None else base_rad) + self.scale * action
+
+    def feedforward_rad(self, joint_vel_rps: torch.Tensor, torque_nm: torch.Tensor) -> torch.Tensor:
+        """The PD-target shift (N, 29) [rad] that adds ``kd * joint_vel_rps + torque_nm`` to the
+        PD law ``kp (target - q) - kd qd``: velocity and torque feed-forward through the
+        position actuator (kd/kp qd_ref + tau_ref/kp)."""
+        return self._kd_over_kp * joint_vel_rps + self._inv_kp * torque_nm
 
     def end_step(self) -> None:
         """This step's action becomes the last one."""

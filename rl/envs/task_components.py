@@ -36,6 +36,16 @@ class TaskComponents:
                 f"joints (a tracking task's), but its command is {type(self.command_gen).__name__}; "
                 "drop --task-actions-around-reference"
             )
+        if task.action_feedforward and (
+            not task.actions_around_reference
+            or self.command_gen.reference_joint_feedforward() is None
+        ):
+            raise ValueError(
+                f"task '{task.name}': action_feedforward shifts the PD targets around the "
+                "reference by its joint rates and planned torques, so it needs "
+                "--task-actions-around-reference and a tracking command (--task track "
+                "--reference ...); drop --task-action-feedforward"
+            )
         self.command = torch.zeros(num_envs, task.commands.dim, device=device)
         self.phase_machine = task.phases.build(num_envs, generator)
         self.skill = task.skill.build(max_episode_length)

@@ -169,6 +169,10 @@ class TaskConfig:
     # Joint PD targets around the command's reference joints (q_ref + scale a), not around the
     # standing pose: zero action follows the reference (a tracking task's command must give it).
     actions_around_reference: bool = False
+    # With actions_around_reference: the PD law gets the reference's joint rates and planned
+    # torques as feed-forward, tau = kp (q_ref - q) + kd (qd_ref - qd) + tau_ref + kp scale a (the
+    # target shifted by kd/kp qd_ref + tau_ref/kp): zero action is the oracle's own control.
+    action_feedforward: bool = False
     evaluation: Any = None
     """task-specific eval config (build(env) -> evaluator); None: generic eval"""
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target

@@ -248,7 +248,12 @@ class G1VecEnv(VecEnv):
         reference joints where the task asks for it, else ``None`` (the standing pose)."""
         if not self.task.actions_around_reference:
             return None
-        return self.command_gen.reference_joint_pos_rad()
+        base = self.command_gen.reference_joint_pos_rad()
+        if self.task.action_feedforward:
+            base = base + self.motion.feedforward_rad(
+                *self.command_gen.reference_joint_feedforward()
+            )
+        return base
 
     def _advance_task(self, state: EnvState) -> None:
         """Phase and command from the state after the step (and resets); ``state`` gets them, the

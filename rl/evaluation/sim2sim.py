@@ -421,6 +421,7 @@ def run_sim2sim(
     default = np.array([j["default_pos_rad"] for j in joints])
     scale = np.array([j["action_scale_rad"] for j in joints])
     base_cols = bundle["control"].get("action_base_command_columns")
+    feedforward = bundle["control"].get("action_feedforward")
     h = bundle["observation"]["history_length"]
     n = cfg.num_envs
     logic = TaskLogic(task, n, cfg.seed)
@@ -451,6 +452,12 @@ def run_sim2sim(
             policy(obs.astype(np.float32), hist), -bundle["clip_actions"], bundle["clip_actions"]
         )
         target = default if base_cols is None else command[:, base_cols[0] : base_cols[1]]
+        if feedforward is not None:  # the bundle's table, at the frame the command shows
+            a, b = feedforward["joint_vel_command_columns"]
+            torque = np.asarray(feedforward["joint_torque_nm"])[
+                logic.command_gen.frame(ahead=1).numpy()
+            ]
+            target = target + kd / kp * command[:, a:b] + torque / kp
         target = target + scale * action
         kicks = pushes.kicks(dt)
         for i, data in enumerate(datas):

@@ -5,7 +5,7 @@
 # rl/tasks/track/flip.py), PD targets around the reference (--task-actions-around-reference),
 # 128 envs x 24 steps, 9766 iterations = 30.0 M env steps, evaluated alone every 60 iterations
 # (32 fresh envs from standing). One physics and one torch thread per run.
-# Usage: bash docs/results/backflip_track/run.sh [oracle|baseline|a2cf_warm|coach]   (SEED=0, OUT=runs/backflip_track)
+# Usage: bash docs/results/backflip_track/run.sh [oracle|baseline|a2cf_warm|coach]   (SEED=0, OUT=runs/backflip_track, FEEDFORWARD=0)
 # Continue a run cut off by the end of a session: a2cf-mb train --resume "$OUT/<run>"
 set -euo pipefail
 OUT=${OUT:-runs/backflip_track}
@@ -13,19 +13,24 @@ seed=${SEED:-0}
 export OMP_NUM_THREADS=1
 common=(--task track --reference "$OUT/oracle" --task-actions-around-reference --num-envs 128
         --env-num-threads 1 --save-interval 60 --eval-interval 60 --iterations 9766 --out "$OUT")
+# FEEDFORWARD=1: the oracle's feed-forward in the PD law (--task-action-feedforward: the TO's
+# joint torques and the reference's joint rates; zero action is the oracle's own control); the
+# run names get "_ff"
+ff=""
+if [[ "${FEEDFORWARD:-0}" == 1 ]]; then common+=(--task-action-feedforward); ff="_ff"; fi
 case "${1:-baseline}" in
 oracle)  # the flip and its wrenches (about 3 min cold)
   a2cf-mb solve-backflip --oracle-out "$OUT/oracle" --no-oracle-progress ;;
 baseline)  # no help
-  a2cf-mb train "${common[@]}" --mode baseline --seed "$seed" --run-name "flip_baseline_s$seed" ;;
+  a2cf-mb train "${common[@]}" --mode baseline --seed "$seed" --run-name "flip${ff}_baseline_s$seed" ;;
 a2cf_warm)  # A2CF, the force head warm-started from the artifact's coach, eta0 per phase from it;
   # the help annealed over 3000 iterations (9.2 M env steps; the default 200, measured best on
   # stand and dance, took all help away by 0.6 M, before any robot got past the crouch:
   # flip_a2cfwarm_anneal200_s0, ANNEAL=200)
   a2cf-mb train "${common[@]}" --mode a2cf --warmstart "$OUT/oracle" --seed "$seed" \
-    --curriculum-anneal-iterations "${ANNEAL:-3000}" --run-name "flip_a2cfwarm_s$seed" ;;
+    --curriculum-anneal-iterations "${ANNEAL:-3000}" --run-name "flip${ff}_a2cfwarm_s$seed" ;;
 coach)  # the artifact's coach itself as the help, scaled by the failure rate (ZEST's rule)
   a2cf-mb train "${common[@]}" --mode coach --coach-source "$OUT/oracle" --seed "$seed" \
-    --run-name "flip_coach_s$seed" ;;
+    --run-name "flip${ff}_coach_s$seed" ;;
 *) echo "unknown case $1" >&2; exit 2 ;;
 esac

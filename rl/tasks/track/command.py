@@ -74,6 +74,7 @@ class MotionCommand(ClipTrackingCommand):
         super().__init__(cfg, num_envs, generator)
         dev, lib = self.device, self.motion
         self._joint = torch.cat([lib.joint_pos_rad, lib.joint_vel_rps], dim=-1).to(dev)
+        self._torque = lib.joint_torque_nm.to(dev)
         self._bodies = {
             "body_pos_w": lib.body_pos_w.to(dev),
             "body_quat_w": lib.body_quat_w.to(dev),
@@ -238,6 +239,12 @@ class MotionCommand(ClipTrackingCommand):
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
         return self._joint[self.frame(ahead=1), : g1.NUM_JOINTS].clone()
+
+    def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Joint rates (N, 29) [rad/s] and planned joint torques (N, 29) [N m] of each env's next
+        frame (0 torque where the reference has none: a clip)."""
+        nxt = self.frame(ahead=1)
+        return self._joint[nxt, g1.NUM_JOINTS :].clone(), self._torque[nxt].clone()
 
     def state_dict(self) -> dict[str, Any]:
         """Per-env references and frames, the failure counts and the last targets."""

@@ -39,12 +39,37 @@ def load_track_reference(
             ref = ref.slice(a, b)
     else:
         ref = load_reference(source, frames=frames, name=Path(source).stem)
+        torques = planned_joint_torques_nm(source, frames)
+        if torques is not None:
+            ref.extras[JOINT_TORQUE_EXTRA] = torques
     if ref.duration_s < MIN_DURATION_S:
         raise ValueError(
             f"reference '{source}' lasts {ref.duration_s:.2f} s, shorter than "
             f"{MIN_DURATION_S:g} s: give a longer clip or a wider --reference-frames segment"
         )
     return ref if step_dt_s is None else at_policy_rate(ref, step_dt_s)
+
+
+JOINT_TORQUE_EXTRA = "joint_torque_nm"
+"""The reference's ``extras`` key of the joint torques it was planned with (F, 29) [N m]."""
+
+
+def planned_joint_torques_nm(source: str, frames: tuple[int, int] | None) -> np.ndarray | None:
+    """The joint torques (F, 29) [N m] an oracle artifact planned its reference with, frames
+    ``[A, B)`` of them: the trajectory optimisation's own (``solve-backflip``: consistent with
+    its contact forces and pelvis wrench) where the artifact has them, else the per-frame wrench
+    QP's at full strength (alpha 1). None for a clip file (no torques were planned)."""
+    folder = Path(source)
+    if not folder.is_dir():
+        return None
+    from optimal_control.artifact import OracleArtifact
+
+    art = OracleArtifact.load(folder)
+    tau = art.extra_arrays.get("to_tau_nm")
+    if tau is None:
+        tau = art.profiles[max(art.profiles)].tau_nm  # the strongest robot of the sweep: alpha 1
+    tau = np.asarray(tau, dtype=np.float64)
+    return tau if frames is None else tau[frames[0] : frames[1]]
 
 
 def at_policy_rate(ref, step_dt_s: float):
@@ -63,9 +88,16 @@ def at_policy_rate(ref, step_dt_s: float):
     def linear(x: np.ndarray) -> np.ndarray:
         return np.stack([np.interp(t, ref.time_s, x[:, k]) for k in range(x.shape[1])], axis=1)
 
+    extras = {
+        k: linear(np.asarray(x, dtype=np.float64).reshape(ref.num_frames, -1)).reshape(
+            (len(t),) + np.shape(x)[1:]
+        )
+        for k, x in ref.extras.items()
+    }
     return Reference(
         time_s=t, q=q, v=linear(ref.v), a=linear(ref.a), contacts=ref.contacts[nearest],
         phase=ref.phase[nearest], phase_names=ref.phase_names, dt=step_dt_s, name=ref.name,
+        extras=extras,
     ).validate()  # fmt: skip
 
 
@@ -88,6 +120,7 @@ def hold_ends(ref, hold_s: float):
         time_s=ref.time_s[0] + np.arange(frames) * ref.dt, q=pad(ref.q, False),
         v=pad(ref.v, True), a=pad(ref.a, True), contacts=pad(ref.contacts, False),
         phase=pad(ref.phase, False), phase_names=ref.phase_names, dt=ref.dt, name=ref.name,
+        extras={k: pad(np.asarray(x), False) for k, x in ref.extras.items()},
     ).validate()  # fmt: skip
 
 
@@ -120,7 +153,8 @@ def pitch_turn_rad(quat_wxyz: np.ndarray | torch.Tensor) -> float:
 class MotionLibrary:
     """A :class:`ClipLibrary` (frames, floor shifts, start / length per reference) plus, per
     frame, the tracked links' world poses and velocities (float32, (F, K, 3|4)), the joint rates
-    (F, 29) and each reference's contact-free name."""
+    (F, 29), the joint torques an oracle artifact planned (F, 29) and each reference's
+    contact-free name."""
 
     clips: ClipLibrary
     body_pos_w: torch.Tensor  # (F, K, 3) link frame positions, before the env's floor offset [m]
@@ -132,6 +166,7 @@ class MotionLibrary:
     phase: torch.Tensor  # (F,) long, each frame's phase in ``phase_names`` (0 where none)
     phase_names: tuple[str, ...]  # the references' shared phase names; (): they differ
     hold_frames: int  # frames held still before (and after) each reference [-]
+    joint_torque_nm: torch.Tensor  # (F, 29) planned joint torques (0 where none were) [N m]
 
     @classmethod
     def load(
@@ -152,9 +187,14 @@ class MotionLibrary:
         qvel = torch.as_tensor(clips.qvel).float()
         names = reference_phase_names(refs)
         phase = np.concatenate([r.phase for r in refs]) if names else np.zeros(len(clips.qpos))
+        torque = np.concatenate([
+            r.extras.get(JOINT_TORQUE_EXTRA, np.zeros((r.num_frames, qpos.shape[1] - 7)))
+            for r in refs
+        ])  # fmt: skip
         return cls(
             clips, pos, quat, lin, ang, qpos[:, 7:], qvel[:, 6:],
             torch.as_tensor(phase, dtype=torch.long), names, round(hold_s / step_dt_s),
+            torch.as_tensor(torque).float(),
         )  # fmt: skip
 
 
