@@ -195,3 +195,72 @@ def test_mode_coach_applies_the_scaled_coach_and_resumes_exactly(flip_artifact, 
     a, b = whole.metrics["iterations"], resumed.metrics["iterations"]
     for row_a, row_b in zip(a, b, strict=True):
         assert {k: row_a[k] for k in PLAIN_KEYS} == {k: row_b[k] for k in PLAIN_KEYS}
+
+
+# ------------------------------------------------------------------- the oracle's feed-forward
+@pytest.mark.parametrize("simulator", ["env", "sim2sim"])
+def test_the_oracle_feedforward_holds_the_robot_up_at_zero_action(
+    flip_artifact, tmp_path, simulator
+) -> None:
+    """``action_feedforward``: the artifact's planned torques (its QP's at alpha 1 here) ride along
+    the tracking library (held ends: the end frames'), the PD targets shift by
+    kd/kp qd_ref + tau_ref/kp, and at zero action over the held standing second the legs sag less
+    than under the PD alone, in the env and in sim2sim from the bundle. Without actions around
+    the reference the option is refused."""
+    from test_sim2sim import export_neutral_policy
+
+    from optimal_control.artifact import OracleArtifact
+    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
+    from robots import g1
+
+    task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
+    legs = slice(0, 12)
+
+    def sag(feedforward: bool) -> float:
+        t = dataclasses.replace(task, action_feedforward=feedforward)
+        env = make_env(t, 2, num_threads=1)
+        try:
+            lib, cmd = env.command_gen.motion, env.command_gen
+            planned = OracleArtifact.load(flip_artifact).profiles[1.0].tau_nm
+            held = lib.hold_frames
+            np.testing.assert_allclose(
+                lib.joint_torque_nm[held : held + len(planned)].numpy(), planned, atol=1e-3
+            )
+            np.testing.assert_allclose(
+                lib.joint_torque_nm[:held].numpy(), planned[:1].repeat(held, 0), atol=1e-3
+            )
+            cmd.for_evaluation()
+            env.reset_envs(torch.arange(2))
+            qd, tau = cmd.reference_joint_feedforward()
+            shift = env._action_base() - cmd.reference_joint_pos_rad()
+            expected = (qd * torch.as_tensor(g1.KD / g1.KP) + tau / torch.as_tensor(g1.KP)).float()
+            torch.testing.assert_close(shift, expected if feedforward else torch.zeros_like(shift))
+            if simulator == "env":
+                errors = []
+                for _ in range(25):
+                    env.step(torch.zeros(2, 35))
+                    s = env.env_state
+                    errors.append(
+                        float((s.joint_pos_rad - s.targets["joint_pos_rad"])[:, legs].abs().mean())
+                    )
+                return float(np.mean(errors))
+            folder = tmp_path / f"ff_{feedforward}"
+            folder.mkdir()
+            bundle = export_neutral_policy(env, folder)
+            assert ("action_feedforward" in bundle["control"]) == feedforward
+            seen: list[np.ndarray] = []
+            run_sim2sim(folder, t, 25, Sim2SimConfig(num_envs=2, seed=1), on_step=seen.append)
+        finally:
+            env.close()
+        columns = {term["name"]: term["columns"] for term in bundle["observation"]["terms"]}
+        # the standing second's reference is the stand pose: the legs' offsets from it
+        return float(
+            np.mean([np.abs(o[:, slice(*columns["joint_pos"])][:, legs]).mean() for o in seen[1:]])
+        )
+
+    with_ff, without = sag(True), sag(False)
+    assert with_ff < 0.7 * without, (with_ff, without)
+    with pytest.raises(ValueError, match="action_feedforward shifts the PD targets"):
+        make_env(
+            dataclasses.replace(task, actions_around_reference=False, action_feedforward=True), 1
+        )
