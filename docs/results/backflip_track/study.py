@@ -1,0 +1,88 @@
+"""The backflip study's curves: per run folder, the policy alone from standing (its evals.jsonl)
+against env steps: the pitch turned (mean and the best env), flips landed, the episode length and
+the furthest phase reached; the help's size beside them where the run had help. Writes study.png
+and study.json (each run's rows and its value at the env steps every run reached) into OUT.
+
+    python docs/results/backflip_track/study.py OUT RUN_DIR...
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from rl.studies.learning import read_evals
+
+
+def flip_rows(run_dir: Path) -> list[dict]:
+    """One row per evaluation: env steps, turn mean / max [rad], flips landed, episode length
+    [s], share of episodes whose furthest phase was air or land."""
+    rows = []
+    for r in read_evals(run_dir):
+        m = r.get("task_metrics") or {}
+        if "turn_rad_mean" not in m:
+            continue
+        phases = m.get("phase_reached", {})
+        rows.append(
+            {
+                "iteration": r["iteration"],
+                "env_steps": r["env_steps"],
+                "turn_rad_mean": m["turn_rad_mean"],
+                "turn_rad_max": m["turn_rad_max"],
+                "flips_landed": m["flips_landed"],
+                "episode_s": r["mean_episode_length_steps"] * 0.02,
+                "reached_air_or_land": phases.get("air", 0.0) + phases.get("land", 0.0),
+                "reached_land": phases.get("land", 0.0),
+            }
+        )
+    return rows
+
+
+def main(out: Path, run_dirs: list[Path]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = {d.name: flip_rows(d) for d in run_dirs}
+    common = min(rows[-1]["env_steps"] for rows in runs.values() if rows)
+    summary = {}
+    for name, rows in runs.items():
+        upto = [r for r in rows if r["env_steps"] <= common]
+        last5 = upto[-5:]
+        summary[name] = {
+            "evaluated_env_steps": rows[-1]["env_steps"] if rows else 0,
+            "at_common_env_steps": common,
+            "turn_rad_mean_last5": float(np.mean([r["turn_rad_mean"] for r in last5])),
+            "turn_rad_max_best": max(r["turn_rad_max"] for r in upto),
+            "flips_landed_best": max(r["flips_landed"] for r in upto),
+            "episode_s_last5": float(np.mean([r["episode_s"] for r in last5])),
+            "reached_land_last5": float(np.mean([r["reached_land"] for r in last5])),
+        }
+    keys = [("turn_rad_mean", "turn alone, mean [rad]"), ("turn_rad_max", "turn alone, best env [rad]"),
+            ("flips_landed", "flips landed alone"), ("episode_s", "episode length alone [s]")]  # fmt: skip
+    fig, axes = plt.subplots(1, len(keys), figsize=(4.6 * len(keys), 3.8))
+    for name, rows in runs.items():
+        x = np.array([r["env_steps"] for r in rows]) / 1e6
+        for ax, (k, _) in zip(axes, keys, strict=True):
+            ax.plot(x, [r[k] for r in rows], marker=".", ms=3, lw=1, label=name)
+    for ax, (k, label) in zip(axes, keys, strict=True):
+        ax.set_xlabel("env steps [M]")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        if k.startswith("turn"):
+            ax.axhline(2 * np.pi - 0.5, color="k", ls="--", lw=0.8)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("backflip by tracking, the policy alone from standing (32 fresh envs)")
+    fig.tight_layout()
+    out.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out / "study.png", dpi=100)
+    (out / "study.json").write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
+    print(json.dumps(summary, indent=1))
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), [Path(p) for p in sys.argv[2:]])
