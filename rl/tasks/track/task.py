@@ -7,7 +7,9 @@ residual targets; whole_body_tracking's are around the standing pose). Rewards
 (whole_body_tracking's G1 recipe, weights per second): anchor position 0.5 (std 0.3 m)
 and orientation 0.5 (0.4 rad), body positions 1.0 (0.3 m) and orientations 1.0 (0.4 rad) relative
 to the anchor, body linear 1.0 (1 m/s) and angular velocities 1.0 (3.14 rad/s); action rate -0.1,
-joint limits -10, link contacts (all but the feet) -0.1; less-assist 2 (A2CF). Episodes start on
+joint limits -10, link contacts (all but the feet) -0.1; less-assist 2 (A2CF).
+``--task-action-feedforward`` adds the reference's joint rates and an oracle artifact's planned
+joint torques to the PD law (zero action is then the oracle's own control). Episodes start on
 the reference (reference state initialisation, adaptive start sampling) and end at its last frame
 (a time-out), at the 20 s cap, or on a drift termination. Flat ground, randomised friction,
 payload and CoM, no pushes. Skill: :mod:`rl.tasks.track.evaluation` (a statue fails it).
