@@ -50,9 +50,13 @@ BACKFLIP_ITERATIONS=${BACKFLIP_ITERATIONS:-305} # the run's total: 30 M env step
 BACKFLIP_EVAL_INTERVAL=${BACKFLIP_EVAL_INTERVAL:-20}  # iterations between evaluations alone [-]
 BACKFLIP_EVAL_ENVS=${BACKFLIP_EVAL_ENVS:-256}   # fresh envs from standing per evaluation [-]
 BACKFLIP_SEED=${BACKFLIP_SEED:-0}
+# 1: the oracle's feed-forward in the PD law (--task-action-feedforward; on the CPU it took the
+# turn alone from 1 rad at 12 M env steps to 4-4.6 rad at 1-2 M: backflip_track/README.md)
+BACKFLIP_FEEDFORWARD=${BACKFLIP_FEEDFORWARD:-1}
 # a2cf's anneal: run.sh's 3000 iterations at 128 envs (9.2 M env steps) at this stage's envs
 BACKFLIP_ANNEAL=${BACKFLIP_ANNEAL:-$(( (3000 * 128 + BACKFLIP_ENVS / 2) / BACKFLIP_ENVS ))}
-BACKFLIP_RUN=${BACKFLIP_RUN:-flip_gpu_${BACKFLIP_MODE}_s${BACKFLIP_SEED}}
+ff_name=""; [ "$BACKFLIP_FEEDFORWARD" = 1 ] && ff_name="ff_"
+BACKFLIP_RUN=${BACKFLIP_RUN:-flip_gpu_${ff_name}${BACKFLIP_MODE}_s${BACKFLIP_SEED}}
 # The backflip stage runs until the call's end less a margin (packing the run, the figures):
 # the device tool stops a call after 600 s. A number here fixes its limit instead.
 CALL_LIMIT_S=${CALL_LIMIT_S:-600}               # the device tool's limit on one call [s]
@@ -198,6 +202,7 @@ else
               --save-interval "$BACKFLIP_EVAL_INTERVAL" --eval-interval "$BACKFLIP_EVAL_INTERVAL"
               --eval-num-envs "$BACKFLIP_EVAL_ENVS" --no-export-onnx --out "$FLIP"
               --run-name "$BACKFLIP_RUN" "${flip_args[@]}")
+    [ "$BACKFLIP_FEEDFORWARD" = 1 ] && flip_run+=(--task-action-feedforward)
   fi
   stage backflip backflip.log "$limit" python3 -u -m a2cf_mb train "${flip_run[@]}" \
     --iterations "$BACKFLIP_ITERATIONS"

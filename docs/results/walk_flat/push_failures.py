@@ -1,0 +1,63 @@
+"""Where walk-flat's policy alone falls: one episode of N fresh envs (seed 20001, not used in
+training or in the run's evaluations) with the task's pushes and again without them; per fall,
+the step, the command it was following, and the seconds since that env's last push.
+
+    python docs/results/walk_flat/push_failures.py RUN_DIR CHECKPOINT [N] > push_failures.json
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+
+import torch
+
+from rl.envs.vec_env import G1VecEnv
+from rl.evaluation.policy import checkpoint_motion_policy
+from rl.runs.folder import load_run_config
+from rl.tasks.registry import resolve_task
+
+
+def falls(run: str, checkpoint: str, n: int, pushes: bool) -> dict:
+    cfg = load_run_config(run)
+    task = resolve_task(cfg)
+    if not pushes:
+        task = dataclasses.replace(task, pushes=dataclasses.replace(task.pushes, enabled=False))
+    env = G1VecEnv(dataclasses.replace(cfg.env, num_envs=n, seed=20001), task)
+    policy = checkpoint_motion_policy(cfg, env, f"{run}/checkpoints/{checkpoint}")
+    for part in env.components:
+        part.for_evaluation()
+    env.set_assist_enabled(False)
+    env.set_less_assist_reward(False)
+    env.reset_envs(torch.arange(n))
+    obs, active, rows = env.get_observations(), torch.ones(n, dtype=torch.bool), []
+    since_push = torch.zeros(n)
+    with torch.inference_mode():
+        for step in range(int(env.max_episode_length)):
+            command = env.command[:, :3].clone()
+            timer = env.pushes.timer_s.clone()
+            actions = policy(obs["policy"], obs["history"])
+            obs, _, dones, extras = env.step(torch.cat([actions, torch.zeros(n, 6)], dim=-1))
+            # the timer was redrawn: a kick this step (a reset redraws it too: not a kick)
+            pushed = (env.pushes.timer_s > timer) & ~dones.bool()
+            since_push = torch.where(pushed, 0.0, since_push + env.step_dt_s)
+            fell = dones.bool() & active & ~extras["time_outs"].bool()
+            for i in torch.nonzero(fell).flatten().tolist():
+                rows.append({"step": step, "command": [round(float(c), 2) for c in command[i]],
+                             "s_since_last_push": round(float(since_push[i]), 2)})  # fmt: skip
+            active &= ~dones.bool()
+            if not active.any():
+                break
+    env.close()
+    return {"pushes": pushes, "num_envs": n, "falls": len(rows), "survival": 1 - len(rows) / n,
+            "per_fall": rows}  # fmt: skip
+
+
+if __name__ == "__main__":
+    run, checkpoint = sys.argv[1], sys.argv[2]
+    n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
+    result = {"run": run, "checkpoint": checkpoint, "seed": 20001,
+              "with_pushes": falls(run, checkpoint, n, True),
+              "without_pushes": falls(run, checkpoint, n, False)}  # fmt: skip
+    print(json.dumps(result, indent=1))
