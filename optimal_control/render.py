@@ -121,8 +121,10 @@ def render_reference(
     wrench_w: np.ndarray | None = None,
     ghost_q: np.ndarray | None = None,
     labels: tuple[str, str] = ("robot", "reference"),
+    captions: list[str] | None = None,
 ) -> Path:
     """Write an mp4 of ``ref`` to ``path``; ``wrench_w`` (T, 6) draws the pelvis force arrow.
+    ``captions`` (T,): a line of text per frame under the time (a walk's command).
 
     ``ghost_q`` (T, nq), Pinocchio layout like ``ref.q``, frame for frame: a second G1 drawn as
     a translucent ghost (``cfg.ghost_rgba``), shifted ``cfg.ghost_side_m`` to the camera's right;
@@ -134,6 +136,11 @@ def render_reference(
         RenderUnavailableError: when no offscreen GL context can be created or the video writer
             (imageio-ffmpeg) is missing.
     """
+    if captions is not None and len(captions) != ref.num_frames:
+        raise ValueError(
+            f"captions must hold one line per frame of the reference ({ref.num_frames}), got "
+            f"{len(captions)}"
+        )
     if ghost_q is not None:
         ghost_q = np.asarray(ghost_q, dtype=float)
         if ghost_q.shape != ref.q.shape:
@@ -200,6 +207,8 @@ def render_reference(
                     lines = [f"t = {ref.time_s[t]:.2f} s"]
                     if ghost_data is not None:
                         lines.append(f"solid: {labels[0]}   ghost: {labels[1]}")
+                    if captions is not None and captions[t]:
+                        lines.extend(captions[t].split("\n"))
                     frame = _draw_text(frame, lines)
                 writer.append_data(frame)
         os.replace(tmp, path)

@@ -315,15 +315,24 @@ def test_scripted_commands_and_the_standing_still_bar(tmp_path) -> None:
         CommandSegment("turn", 0.2, (0.0, 0.0, 0.8)),
         CommandSegment("stop", 0.2, (0.0, 0.0, 0.0)),
     )
+    from rl.evaluation.policy import _VideoFrames
+
     env = make_env(quiet(WALK_FLAT), 3, num_threads=1)
     evaluator = WalkEvaluationConfig(command_script=script).build(env)
     active = torch.ones(3, dtype=torch.bool)
-    seen = []
+    seen, video = [], _VideoFrames()
     for _ in range(40):  # 0.8 s: the last segment is held
         _, _, dones, extras = env.step(torch.zeros(3, env.num_actions))
         seen.append(env.env_state.command[:, :3].clone())
         evaluator.on_step(env, active, dones, extras)
         active &= ~dones.bool()
+        video.record(env)
+    # a video's caption: env 0's command of each frame, with the robot's own pelvis velocity
+    assert video.captions[2].startswith("command: vx +0.80 m/s  vy +0.00 m/s  yaw +0.00 rad/s")
+    assert video.captions[14].startswith("command: vx +0.00 m/s  vy +0.00 m/s  yaw +0.80 rad/s")
+    assert (
+        all("\nrobot (0.5 s mean): vx " in c for c in video.captions) and len(video.captions) == 40
+    )
     assert torch.allclose(seen[2][0], torch.tensor([0.8, 0.0, 0.0]))
     assert torch.allclose(seen[14][1], torch.tensor([0.0, 0.0, 0.8]))
     assert torch.allclose(seen[-1][2], torch.zeros(3))

@@ -185,6 +185,16 @@ def test_a_ghost_render_draws_a_second_bluish_g1(walk_plan, tmp_path):
     beside = dataclasses.replace(cfg, ghost_side_m=1.0, overlay_text=True)
     side = render_reference(ref, tmp_path / "side.mp4", beside, ghost_q=ref.q)
     assert len(imageio.mimread(side)) == 3
+    # a caption per frame (a walk's command) is drawn under the time: the text's pixels change
+    big = dataclasses.replace(beside, width=192, height=128)
+    lines = [f"command: vx {0.01 * k:+.2f} m/s" for k in range(ref.num_frames)]
+    plain_big = render_reference(ref, tmp_path / "big.mp4", big, ghost_q=ref.q)
+    captioned = render_reference(ref, tmp_path / "cap.mp4", big, ghost_q=ref.q, captions=lines)
+    c, d = (np.stack(imageio.mimread(p)).astype(float) for p in (plain_big, captioned))
+    text = np.abs(d - c).sum(axis=-1) > 60
+    assert all(text[k].mean() > 0.005 for k in range(3)), text.mean(axis=(1, 2))
+    with pytest.raises(ValueError, match="one line per frame"):
+        render_reference(ref, tmp_path / "bad.mp4", cfg, captions=lines[:3])
     with pytest.raises(ValueError, match="one configuration per frame"):
         render_reference(ref, tmp_path / "bad.mp4", cfg, ghost_q=ref.q[:5])
 

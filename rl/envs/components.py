@@ -89,6 +89,10 @@ class Command(Component, ABC):
         (what ``--warmstart-motion`` clones the motion head onto); None without a reference."""
         return None
 
+    def describe(self, env: int) -> str:
+        """Env ``env``'s command in words for a video's caption ("": nothing to say)."""
+        return ""
+
     def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor] | None:
         """Per env, the reference's joint rates (N, 29) [rad/s] and planned joint torques
         (N, 29) [N m] for the next step (``action_feedforward``); None without them."""

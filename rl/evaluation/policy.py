@@ -159,6 +159,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
                     train_cfg.task,
                     ghost_qpos=frames.ghost_qpos(),
                     ghost_side_m=cfg.video_ghost_side_m,
+                    captions=frames.captions if any(frames.captions) else None,
                 )
             )
         except RenderUnavailableError as err:  # no GL / no encoder: the metrics still count
@@ -213,9 +214,14 @@ class _VideoFrames:
     """Env 0's MuJoCo qpos per recorded step (36,) and, when its task has a reference motion,
     the reference's qpos (36,) at the same step."""
 
+    VELOCITY_MEAN_FRAMES = 25
+    """Frames the caption's robot velocity is averaged over (0.5 s at 50 Hz: a gait's step)."""
+
     def __init__(self) -> None:
         self.qpos: list[np.ndarray] = []
         self.reference: list[np.ndarray] = []
+        self.captions: list[str] = []  # per frame: the command and the robot's velocity
+        self._velocity: list[tuple[float, float, float]] = []
 
     def __len__(self) -> int:
         return len(self.qpos)
@@ -223,6 +229,17 @@ class _VideoFrames:
     def record(self, env: G1VecEnv) -> None:
         """Append env 0's current state (and its reference pose, if the command has one)."""
         self.qpos.append(env.state[0, env.layout.qpos].copy())
+        caption = env.command_gen.describe(0)
+        if caption:  # the command beside what the robot does: its pelvis velocity (pelvis frame)
+            s = env.env_state
+            self._velocity.append(
+                (*s.base_lin_vel_b[0, :2].tolist(), float(s.base_ang_vel_b[0, 2]))
+            )
+            vx, vy, wz = np.mean(self._velocity[-self.VELOCITY_MEAN_FRAMES :], axis=0)
+            caption += (
+                f"\nrobot (0.5 s mean): vx {vx:+.2f} m/s  vy {vy:+.2f} m/s  yaw {wz:+.2f} rad/s"
+            )
+        self.captions.append(caption)
         reference = env.command_gen.reference_qpos()
         if reference is not None:
             self.reference.append(np.array(reference[0], dtype=np.float64))
@@ -255,10 +272,11 @@ def _render_qpos(
     *,
     ghost_qpos: np.ndarray | None,
     ghost_side_m: float,
+    captions: list[str] | None = None,
 ) -> Path:
     """Kinematic replay video of MuJoCo configurations (T, 36) with the full visual G1 model;
     ``ghost_qpos`` (T, 36): the reference pose of each frame, drawn as a ghost ``ghost_side_m``
-    [m] to the camera's right."""
+    [m] to the camera's right; ``captions`` (T,): each frame's command in words."""
     from optimal_control.reference import Reference
     from optimal_control.render import RenderConfig, render_reference
     from robots.conventions import mj_to_pin_q
@@ -278,7 +296,7 @@ def _render_qpos(
     )
     ghost_q = None if ghost_qpos is None else mj_to_pin_q(np.asarray(ghost_qpos))
     cfg = dataclasses.replace(RenderConfig(), ghost_side_m=ghost_side_m)
-    return render_reference(ref, path, cfg, ghost_q=ghost_q)
+    return render_reference(ref, path, cfg, ghost_q=ghost_q, captions=captions)
 
 
 def evaluate_checkpoints(

@@ -111,6 +111,11 @@ class VelocityCommand(Command):
         ends = self._script[0]
         return torch.searchsorted(ends, self.clock_s, right=True).clamp(max=len(ends) - 1)
 
+    def describe(self, env: int) -> str:
+        """Env ``env``'s command, e.g. "command: vx +0.50 m/s  vy +0.00 m/s  yaw +0.00 rad/s"."""
+        vx, vy, wz = (float(c) for c in self.command[env, :3])
+        return f"command: vx {vx:+.2f} m/s  vy {vy:+.2f} m/s  yaw {wz:+.2f} rad/s"
+
     def _scripted(self) -> None:
         self.command[:, :3] = self._script[1][self.segment()]
 
