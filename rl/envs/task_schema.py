@@ -173,6 +173,15 @@ class TaskConfig:
     # torques as feed-forward, tau = kp (q_ref - q) + kd (qd_ref - qd) + tau_ref + kp scale a (the
     # target shifted by kd/kp qd_ref + tau_ref/kp): zero action is the oracle's own control.
     action_feedforward: bool = False
+    drift_free_phases: tuple[str, ...] = field(
+        default=(),
+        metadata={
+            "help": "phases (by name) in which a tracking task's drift terminations (anchor "
+            "tilt, end-effector height) do not end an episode, e.g. a flip's flight: jump air "
+            "(a rotation running behind the reference is then caught up or landed, not cut "
+            "off) [-]"
+        },
+    )
     evaluation: Any = None
     """task-specific eval config (build(env) -> evaluator); None: generic eval"""
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
@@ -188,6 +197,11 @@ class TaskConfig:
             check_unique(f"{group} observation", getattr(self.observations, group).terms)
         if not 0.0 < self.discount <= 1.0:
             raise ValueError(f"task discount must be in (0, 1], got {self.discount}")
+        if self.drift_free_phases and not any("free_phases" in t.params for t in self.terminations):
+            raise ValueError(
+                f"task '{self.name}' has no drift termination to switch off by phase; "
+                "--task-drift-free-phases is for the tracking tasks (--task track)"
+            )
         if self.learning_epochs < 1 or self.vae_learning_epochs < 0:
             raise ValueError(
                 f"task learning_epochs must be >= 1 and vae_learning_epochs >= 0, got "

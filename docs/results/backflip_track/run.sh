@@ -18,6 +18,9 @@ common=(--task track --reference "$OUT/oracle" --task-actions-around-reference -
 # run names get "_ff"
 ff=""
 if [[ "${FEEDFORWARD:-0}" == 1 ]]; then common+=(--task-action-feedforward); ff="_ff"; fi
+# FLIGHT_FREE=1: the drift terminations (anchor tilt, end-effector height) off in the jump and
+# the air (--task-drift-free-phases jump air); the run names get "_free"
+if [[ "${FLIGHT_FREE:-0}" == 1 ]]; then common+=(--task-drift-free-phases jump air); ff+="_free"; fi
 case "${1:-baseline}" in
 oracle)  # the flip and its wrenches (about 3 min cold)
   a2cf-mb solve-backflip --oracle-out "$OUT/oracle" --no-oracle-progress ;;

@@ -51,9 +51,13 @@ TRACK = TaskConfig(
     ),
     terminations=(
         TerminationTerm("anchor_height", terms.anchor_height_drift, params={"max_m": 0.25}),
-        TerminationTerm("anchor_tilt", terms.anchor_tilt_drift, params={"max_rad": 0.8}),
         TerminationTerm(
-            "end_effector_height", terms.end_effector_height_drift, params={"max_m": 0.25}
+            "anchor_tilt", terms.anchor_tilt_drift, params={"max_rad": 0.8, "free_phases": ()}
+        ),
+        TerminationTerm(
+            "end_effector_height",
+            terms.end_effector_height_drift,
+            params={"max_m": 0.25, "free_phases": ()},
         ),
     ),
     assist_bound=paper_bound_rows("dance"),
@@ -113,7 +117,29 @@ def adapt_to_references(task: TaskConfig) -> TaskConfig:
     turns = [pitch_turn_rad(r.q[:, [6, 3, 4, 5]]) for r in refs]  # Pinocchio x y z w -> w x y z
     if all(abs(t) > math.pi for t in turns):
         task = for_flips(task, refs, turns[0])
-    return task
+    return with_drift_free_phases(task)
+
+
+DRIFT_TERMINATIONS = ("anchor_tilt", "end_effector_height")
+"""The tracking terminations that ``TaskConfig.drift_free_phases`` switches off by phase."""
+
+
+def with_drift_free_phases(task: TaskConfig) -> TaskConfig:
+    """``task`` with its drift terminations off in ``task.drift_free_phases`` (their phase
+    indices as the terms' ``free_phases``); unchanged when it names none. An unknown phase is
+    refused with the task's phases."""
+    if not task.drift_free_phases:
+        return task
+    names = task.phase_names
+    unknown = [p for p in task.drift_free_phases if p not in names]
+    if unknown:
+        raise ValueError(
+            f"--task-drift-free-phases {' '.join(unknown)}: task '{task.name}' has no such "
+            f"phase; its phases: {' '.join(names)} (a solve-backflip artifact's reference gives "
+            "stand crouch jump air land)"
+        )
+    free = tuple(names.index(p) for p in task.drift_free_phases)
+    return task.with_term_params({t: {"free_phases": free} for t in DRIFT_TERMINATIONS})
 
 
 DANCE = dataclasses.replace(

@@ -172,19 +172,32 @@ def anchor_height_drift(s: EnvState, max_m: float = 0.25) -> torch.Tensor:
     return (s.body_pos_w[:, ANCHOR, 2] - s.targets["body_pos_w"][:, ANCHOR, 2]).abs() > max_m
 
 
-def anchor_tilt_drift(s: EnvState, max_rad: float = 0.8) -> torch.Tensor:
+def _outside(s: EnvState, phases: tuple[int, ...]) -> torch.Tensor | bool:
+    """(N,) bool: the env's phase is none of ``phases`` (True for all when there are none)."""
+    if not phases:
+        return True
+    return ~torch.isin(s.phase, torch.as_tensor(phases, device=s.phase.device))
+
+
+def anchor_tilt_drift(
+    s: EnvState, max_rad: float = 0.8, free_phases: tuple[int, ...] = ()
+) -> torch.Tensor:
     """The anchor's up axis is more than ``max_rad`` [rad] off the reference's (N,) bool (the
-    heading is free: a turned robot that tracks its posture has not failed)."""
+    heading is free: a turned robot that tracks its posture has not failed); never in
+    ``free_phases`` (phase indices: a flip's flight, ``TaskConfig.drift_free_phases``)."""
     up = torch.tensor([0.0, 0.0, 1.0], device=s.body_quat_w.device).expand(
         s.body_quat_w.shape[0], 3
     )
     a = quat_rotate(s.body_quat_w[:, ANCHOR], up)
     b = quat_rotate(s.targets["body_quat_w"][:, ANCHOR], up)
-    return torch.acos((a * b).sum(-1).clamp(-1.0, 1.0)) > max_rad
+    return (torch.acos((a * b).sum(-1).clamp(-1.0, 1.0)) > max_rad) & _outside(s, free_phases)
 
 
-def end_effector_height_drift(s: EnvState, max_m: float = 0.25) -> torch.Tensor:
-    """An end effector's (ankles, wrists) height is more than ``max_m`` [m] off (N,) bool."""
+def end_effector_height_drift(
+    s: EnvState, max_m: float = 0.25, free_phases: tuple[int, ...] = ()
+) -> torch.Tensor:
+    """An end effector's (ankles, wrists) height is more than ``max_m`` [m] off (N,) bool; never
+    in ``free_phases`` (phase indices)."""
     idx = list(END_EFFECTORS)
     err = (s.body_pos_w[:, idx, 2] - s.targets["body_pos_w"][:, idx, 2]).abs()
-    return (err > max_m).any(-1)
+    return (err > max_m).any(-1) & _outside(s, free_phases)
