@@ -99,6 +99,36 @@ def test_drift_terminations_fire_past_their_thresholds(env) -> None:
     assert terms.anchor_height_drift(moved).all()
     assert terms.end_effector_height_drift(moved).all()
     assert not terms.anchor_tilt_drift(moved).any()
+    # drift-free phases: the same drift ends no episode of an env in one of them
+    phase = torch.arange(s.phase.shape[0]) % 2
+    split = dataclasses.replace(moved, phase=phase)
+    assert torch.equal(terms.end_effector_height_drift(split, free_phases=(1,)), phase == 0)
+    flipped = dict(s.targets)
+    flipped["body_quat_w"] = torch.tensor([0.0, 0.0, 1.0, 0.0]).expand_as(s.targets["body_quat_w"])
+    tilted = dataclasses.replace(s, targets=flipped, phase=phase)
+    assert terms.anchor_tilt_drift(tilted).all()
+    assert torch.equal(terms.anchor_tilt_drift(tilted, free_phases=(1,)), phase == 0)
+
+
+def test_drift_free_phases_reach_the_terms_by_name() -> None:
+    """--task-drift-free-phases names phases; the tracking task turns them into the drift terms'
+    phase indices once its phases are read from the reference; unknown names and tasks without
+    drift terminations are refused."""
+    from rl.tasks.track.phases import ReferencePhaseConfig
+    from rl.tasks.track.task import with_drift_free_phases
+
+    task = dataclasses.replace(
+        get_task("track"),
+        phases=ReferencePhaseConfig(names=("stand", "jump", "air", "land")),
+        assist_bound=get_task("track").assist_bound * 4,
+        drift_free_phases=("jump", "air"),
+    )
+    free = {t.name: t.params.get("free_phases") for t in with_drift_free_phases(task).terminations}
+    assert free == {"anchor_height": None, "anchor_tilt": (1, 2), "end_effector_height": (1, 2)}
+    with pytest.raises(ValueError, match="has no such phase; its phases: stand jump air land"):
+        with_drift_free_phases(dataclasses.replace(task, drift_free_phases=("fly",)))
+    with pytest.raises(ValueError, match="no drift termination to switch off"):
+        get_task("walk-flat").with_overrides({"drift_free_phases": ["air"]})
 
 
 def test_episodes_end_at_the_reference_end_as_time_outs(wave_clip) -> None:
