@@ -5,7 +5,7 @@
 # No TensorBoard events, and no checkpoints unless KEEP_LAST=1: then each run's last checkpoint
 # (checkpoints/last.pt, ~4 MB) and its live logs (metrics.jsonl, curriculum.jsonl) come too, so a
 # later session on a fresh machine continues the run exactly: restore_runs.sh DST runs/<study>, then
-# a2cf-mb train --resume runs/<study>/<run>. Usage: [KEEP_LAST=1] copy_runs.sh SRC DST
+# a2cf-mb train --resume runs/<study>/<run>. Usage: [KEEP_LAST=1 [KEEP_ONLY="RUN..."]] copy_runs.sh SRC DST
 set -euo pipefail
 SRC=$1
 DST=$2
@@ -19,7 +19,11 @@ for run in "$SRC"/*/; do
   [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
   [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
   [ -f "$run/metrics.jsonl" ] && gzip -c "$run/metrics.jsonl" > "$DST/$name/metrics.jsonl.gz"
-  if [ "${KEEP_LAST:-0}" = "1" ] && [ -f "$run/checkpoints/last.pt" ]; then
+  keep=${KEEP_LAST:-0}
+  # KEEP_ONLY="run_a run_b": of the runs, only these keep their checkpoint (the tracked tree is
+  # what a GPU visit carries: docs/gpu.md)
+  if [ -n "${KEEP_ONLY:-}" ] && [[ " $KEEP_ONLY " != *" $name "* ]]; then keep=0; fi
+  if [ "$keep" = "1" ] && [ -f "$run/checkpoints/last.pt" ]; then
     mkdir -p "$DST/$name/checkpoints"
     cp "$run/checkpoints/last.pt" "$DST/$name/checkpoints/last.pt"
   fi

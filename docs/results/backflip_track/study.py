@@ -16,6 +16,9 @@ import numpy as np
 
 from rl.studies.learning import read_evals
 
+MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6)
+"""Env steps at which every run that reached them is compared."""
+
 
 def flip_rows(run_dir: Path) -> list[dict]:
     """One row per evaluation: env steps, turn mean / max [rad], flips landed, episode length
@@ -48,19 +51,26 @@ def main(out: Path, run_dirs: list[Path]) -> None:
     import matplotlib.pyplot as plt
 
     runs = {d.name: flip_rows(d) for d in run_dirs}
-    common = min(rows[-1]["env_steps"] for rows in runs.values() if rows)
     summary = {}
     for name, rows in runs.items():
-        upto = [r for r in rows if r["env_steps"] <= common]
-        last5 = upto[-5:]
+        if not rows:
+            continue
+        marks = {}
+        for mark in MARKS:  # the 3 evaluations up to each mark the run reached
+            upto = [r for r in rows if r["env_steps"] <= mark * 1.02]
+            if rows[-1]["env_steps"] < mark * 0.98 or not upto:
+                continue
+            last3 = upto[-3:]
+            marks[f"{mark / 1e6:g}M"] = {
+                "turn_rad_mean": round(float(np.mean([r["turn_rad_mean"] for r in last3])), 2),
+                "turn_rad_max_best": round(max(r["turn_rad_max"] for r in upto), 2),
+                "reached_land": round(float(np.mean([r["reached_land"] for r in last3])), 2),
+                "episode_s": round(float(np.mean([r["episode_s"] for r in last3])), 2),
+            }
         summary[name] = {
-            "evaluated_env_steps": rows[-1]["env_steps"] if rows else 0,
-            "at_common_env_steps": common,
-            "turn_rad_mean_last5": float(np.mean([r["turn_rad_mean"] for r in last5])),
-            "turn_rad_max_best": max(r["turn_rad_max"] for r in upto),
-            "flips_landed_best": max(r["flips_landed"] for r in upto),
-            "episode_s_last5": float(np.mean([r["episode_s"] for r in last5])),
-            "reached_land_last5": float(np.mean([r["reached_land"] for r in last5])),
+            "evaluated_env_steps": rows[-1]["env_steps"],
+            "flips_landed_best": max(r["flips_landed"] for r in rows),
+            "at_env_steps (mean of the 3 evaluations up to it)": marks,
         }
     keys = [("turn_rad_mean", "turn alone, mean [rad]"), ("turn_rad_max", "turn alone, best env [rad]"),
             ("flips_landed", "flips landed alone"), ("episode_s", "episode length alone [s]")]  # fmt: skip

@@ -64,7 +64,7 @@ def main(run: str, checkpoint: str, n: int) -> dict:
             # the frame this step aimed at, counted from the clip's first (standing) frame
             frame = cmd.frame() - cmd._start[cmd.clip]
             turned_ref = torch.where(
-                active, ref_turn[frame.clamp(max=len(ref_turn) - 1)], turned_ref
+                active & ~done, ref_turn[frame.clamp(max=len(ref_turn) - 1)], turned_ref
             )
             last = env.env_state.base_quat_w.clone()  # after the resets: the next step's start
             if active[0]:
