@@ -264,3 +264,36 @@ def test_the_oracle_feedforward_holds_the_robot_up_at_zero_action(
         make_env(
             dataclasses.replace(task, actions_around_reference=False, action_feedforward=True), 1
         )
+
+
+def test_the_judge_allows_the_links_the_reference_puts_down(flip_artifact) -> None:
+    """A link on the ground fails a flip only where the reference keeps it off: the library
+    finds the links a pose puts down (a robot sunk into the floor: shins and more; standing:
+    none), and the command dilates the reference's contacts by the judge's margin."""
+    from rl.tasks.track.library import link_ground_contacts
+
+    task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
+    env = make_env(task, 2, num_threads=1)
+    try:
+        cmd, lib = env.command_gen, env.command_gen.motion
+        assert not lib.link_ground_contact.any()  # the synthetic flip stays on its soles
+        names = env.env_state.contact_body_names
+        assert lib.contact_bodies == names
+        stand = lib.clips.qpos[:1].copy()
+        sunk = stand.copy()
+        sunk[:, 2] -= 0.45
+        down, bodies = link_ground_contacts(np.concatenate([stand, sunk]))
+        assert not down[0].any() and down[1, bodies.index("left_knee_link")]
+        kept = lib.link_ground_contact.clone()  # the library is shared by the process's envs
+        lib.link_ground_contact[:] = False
+        lib.link_ground_contact[10, bodies.index("left_knee_link")] = True
+        cmd.for_evaluation()
+        env.reset_envs(torch.arange(2))
+        seen = []
+        for _ in range(16):
+            seen.append(bool(cmd.reference_link_contact(("left_knee_link",), 3)[0, 0]))
+            env.step(torch.zeros(2, 35))
+        assert seen == [False] * 7 + [True] * 7 + [False] * 2  # frames 7..13: 10 +- 3
+    finally:
+        lib.link_ground_contact[:] = kept
+        env.close()

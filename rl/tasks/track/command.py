@@ -75,6 +75,7 @@ class MotionCommand(ClipTrackingCommand):
         dev, lib = self.device, self.motion
         self._joint = torch.cat([lib.joint_pos_rad, lib.joint_vel_rps], dim=-1).to(dev)
         self._torque = lib.joint_torque_nm.to(dev)
+        self._link_contact: tuple[int, torch.Tensor] | None = None  # (margin, (F, B) dilated)
         self._bodies = {
             "body_pos_w": lib.body_pos_w.to(dev),
             "body_quat_w": lib.body_quat_w.to(dev),
@@ -239,6 +240,19 @@ class MotionCommand(ClipTrackingCommand):
     def reference_joint_pos_rad(self) -> torch.Tensor:
         """Joint pose (N, 29) [rad] of each env's next frame (the command's joint targets)."""
         return self._joint[self.frame(ahead=1), : g1.NUM_JOINTS].clone()
+
+    def reference_link_contact(self, names: tuple[str, ...], margin_frames: int) -> torch.Tensor:
+        """(N, len(names)) bool: the link ``names[b]`` (not a sole) of each env's reference is on
+        the ground within ``margin_frames`` of its current frame (a flip's crouching shins)."""
+        if self._link_contact is None or self._link_contact[0] != margin_frames:
+            down = self.motion.link_ground_contact.float()[None, None]  # (1, 1, F, B)
+            k = 2 * margin_frames + 1
+            near = torch.nn.functional.max_pool2d(
+                down, (k, 1), stride=1, padding=(margin_frames, 0)
+            )[0, 0]
+            self._link_contact = (margin_frames, near.bool().to(self.device))
+        cols = [self.motion.contact_bodies.index(b) for b in names]
+        return self._link_contact[1][self.frame()][:, cols]
 
     def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Joint rates (N, 29) [rad/s] and planned joint torques (N, 29) [N m] of each env's next

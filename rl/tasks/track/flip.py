@@ -12,7 +12,9 @@ frame.
 A flip is *landed* when, in one episode from standing:
 
 * the pelvis turned at least ``min_turn_rad`` (2 pi - 0.5) in the reference's direction;
-* the soles touched down after that turn, and no other link touched the ground at any step;
+* the soles touched down after that turn, and no other link touched the ground at any step
+  where the reference keeps it off (within ``contact_margin_s``: the oracle's deep crouch puts
+  the shins' collision geometry on the floor, and tracking it is no fall);
 * the episode reached the reference's end without a fall or a drift termination, and the robot
   was upright (pelvis tilt <= ``max_tilt_rad``) and still (pelvis speed <= ``max_speed_mps``,
   angular speed <= ``max_ang_speed_rps``) over its last ``still_s``.
@@ -47,6 +49,8 @@ class FlipEvaluationConfig(TrackEvaluationConfig):
     max_tilt_rad: float = 0.35  # upright: pelvis up axis within this of vertical [rad]
     max_speed_mps: float = 0.3  # still: pelvis speed at most this [m/s]
     max_ang_speed_rps: float = 1.0  # still: pelvis angular speed at most this [rad/s]
+    # a link may touch the ground where the reference's does, this close in time [s]
+    contact_margin_s: float = 0.1
 
     def build(self, env: Any) -> FlipEvaluator:
         """The evaluator of one rollout on ``env`` (a flip-tracking task's env)."""
@@ -87,7 +91,11 @@ class FlipEvaluator(TrackEvaluator):
             turned = self.turned >= cfg.min_turn_rad
             soles = (s.foot_contact_force_n > cfg.contact_threshold_n).all(dim=-1)
             self.landed |= keep & turned & soles
-            self.other_contact |= keep & s.body_ground_contact.any(dim=-1)
+            # a link on the ground where the reference keeps it off (its crouching shins are not)
+            ref_down = env.command_gen.reference_link_contact(
+                s.contact_body_names, round(cfg.contact_margin_s / env.step_dt_s)
+            ).cpu()
+            self.other_contact |= keep & (s.body_ground_contact & ~ref_down).any(dim=-1)
             still = (
                 ~base_tilted(s, cfg.max_tilt_rad)
                 & (s.base_lin_vel_w.norm(dim=-1) <= cfg.max_speed_mps)

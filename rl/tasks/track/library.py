@@ -167,6 +167,8 @@ class MotionLibrary:
     phase_names: tuple[str, ...]  # the references' shared phase names; (): they differ
     hold_frames: int  # frames held still before (and after) each reference [-]
     joint_torque_nm: torch.Tensor  # (F, 29) planned joint torques (0 where none were) [N m]
+    link_ground_contact: torch.Tensor  # (F, B) bool: link b (not a sole) on the ground
+    contact_bodies: tuple[str, ...]  # (B,) the links of ``link_ground_contact``
 
     @classmethod
     def load(
@@ -191,10 +193,13 @@ class MotionLibrary:
             r.extras.get(JOINT_TORQUE_EXTRA, np.zeros((r.num_frames, qpos.shape[1] - 7)))
             for r in refs
         ])  # fmt: skip
+        grounded = clips.qpos.copy()
+        grounded[:, 2] -= clips.floor_shift_m  # each frame on the floor, as an episode from it
+        contact, bodies = link_ground_contacts(grounded)
         return cls(
             clips, pos, quat, lin, ang, qpos[:, 7:], qvel[:, 6:],
             torch.as_tensor(phase, dtype=torch.long), names, round(hold_s / step_dt_s),
-            torch.as_tensor(torque).float(),
+            torch.as_tensor(torque).float(), torch.as_tensor(contact), bodies,
         )  # fmt: skip
 
 
@@ -216,6 +221,22 @@ def link_kinematics(qpos: np.ndarray, qvel: np.ndarray, bodies: tuple[str, ...] 
         sens_t[:, torch.as_tensor(cols)]
         for cols in (lay.body_pos, lay.body_quat, lay.body_lin_vel, lay.body_ang_vel)
     )
+
+
+def link_ground_contacts(qpos: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Which links other than the soles touch the ground at MuJoCo ``qpos`` (F, 36): (F, B) bool
+    and the B links (the env's link-contact sensors, on the env's collision model)."""
+    from rl.envs.model import build_physics_model, model_layout
+
+    model = build_physics_model(link_collisions=True)
+    lay = model_layout(model)
+    data = mujoco.MjData(model)
+    down = np.zeros((qpos.shape[0], len(lay.contact_bodies)), dtype=bool)
+    for f in range(qpos.shape[0]):
+        data.qpos[:] = qpos[f]
+        mujoco.mj_forward(model, data)
+        down[f] = data.sensordata[lay.contact] > 0.5
+    return down, tuple(lay.contact_bodies)
 
 
 _LIBRARIES: dict[tuple, MotionLibrary] = {}
