@@ -196,6 +196,31 @@ def _require_exported_policy(run_dir: Path, exported: bool) -> None:
     )
 
 
+def alone_from_checkpoint(
+    run_dir: str | Path,
+    checkpoint: str,
+    num_envs: int,
+    seed: int,
+    task: Any = None,
+) -> tuple[G1VecEnv, torch.nn.Module]:
+    """``num_envs`` fresh envs of seed ``seed`` of the run's task (or ``task``, a variant of it),
+    set up as the evaluations alone set them (every part in its evaluation setting, assistance and
+    the less-assist reward off, all reset), and the deterministic motion policy of the run's
+    ``checkpoints/<checkpoint>`` (``policy(obs["policy"], obs["history"])``). For study scripts
+    that look inside a rollout (where it falls, which link touches)."""
+    run_dir = Path(run_dir)
+    train_cfg = load_run_config(run_dir)
+    task = resolve_task(train_cfg) if task is None else task
+    env = G1VecEnv(dataclasses.replace(train_cfg.env, num_envs=num_envs, seed=seed), task)
+    policy = checkpoint_motion_policy(train_cfg, env, run_dir / CHECKPOINT_DIR / checkpoint)
+    for part in env.components:
+        part.for_evaluation()
+    env.set_assist_enabled(False)
+    env.set_less_assist_reward(False)
+    env.reset_envs(torch.arange(num_envs, device=env.device))
+    return env, policy
+
+
 def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
     """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``,
     on the env's device (a damaged checkpoint: :class:`~rl.runs.folder.DamagedRunFileError` naming

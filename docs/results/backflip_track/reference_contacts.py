@@ -9,7 +9,6 @@ landing.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from collections import Counter
@@ -39,18 +38,9 @@ def reference_contacts(artifact: str) -> list[tuple[int, float, list[str]]]:
 
 
 def policy_contacts(run: str, checkpoint: str, n: int = 32) -> dict:
-    from rl.envs.vec_env import G1VecEnv
-    from rl.evaluation.policy import checkpoint_motion_policy
-    from rl.runs.folder import load_run_config
-    from rl.tasks.registry import resolve_task
+    from rl.evaluation.policy import alone_from_checkpoint
 
-    cfg = load_run_config(run)
-    env = G1VecEnv(dataclasses.replace(cfg.env, num_envs=n, seed=10000), resolve_task(cfg))
-    policy = checkpoint_motion_policy(cfg, env, f"{run}/checkpoints/{checkpoint}")
-    for part in env.components:
-        part.for_evaluation()
-    env.set_assist_enabled(False)
-    env.reset_envs(torch.arange(n))
+    env, policy = alone_from_checkpoint(run, checkpoint, n, 10000)
     obs, active, first = env.get_observations(), torch.ones(n, dtype=torch.bool), {}
     names = env.env_state.contact_body_names
     with torch.inference_mode():

@@ -8,7 +8,6 @@ pelvis height of both, and whether the soles touch the ground.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from collections import Counter
@@ -16,8 +15,7 @@ from collections import Counter
 import numpy as np
 import torch
 
-from rl.envs.vec_env import G1VecEnv
-from rl.evaluation.policy import checkpoint_motion_policy
+from rl.evaluation.policy import alone_from_checkpoint
 from rl.runs.folder import load_run_config
 from rl.tasks.registry import resolve_task
 from rl.tasks.track.library import pitch_increment_rad
@@ -26,8 +24,7 @@ from rl.tasks.track.library import pitch_increment_rad
 def main(run: str, checkpoint: str, n: int) -> dict:
     import rl.envs.vec_env as vec_env
 
-    cfg = load_run_config(run)
-    task = resolve_task(cfg)
+    task = resolve_task(load_run_config(run))
     seen: dict = {}
     any_failure = vec_env.any_failure
 
@@ -36,13 +33,7 @@ def main(run: str, checkpoint: str, n: int) -> dict:
         return any_failure(terms, state)
 
     vec_env.any_failure = spy
-    env = G1VecEnv(dataclasses.replace(cfg.env, num_envs=n, seed=20003), task)
-    policy = checkpoint_motion_policy(cfg, env, f"{run}/checkpoints/{checkpoint}")
-    for part in env.components:
-        part.for_evaluation()
-    env.set_assist_enabled(False)
-    env.set_less_assist_reward(False)
-    env.reset_envs(torch.arange(n))
+    env, policy = alone_from_checkpoint(run, checkpoint, n, 20003, task)
     obs, active = env.get_observations(), torch.ones(n, dtype=torch.bool)
     cmd = env.command_gen
     pelvis = cmd.motion.body_quat_w[:, 0].double()  # the reference's pelvis, frame by frame

@@ -13,24 +13,16 @@ import sys
 
 import torch
 
-from rl.envs.vec_env import G1VecEnv
-from rl.evaluation.policy import checkpoint_motion_policy
+from rl.evaluation.policy import alone_from_checkpoint
 from rl.runs.folder import load_run_config
 from rl.tasks.registry import resolve_task
 
 
 def falls(run: str, checkpoint: str, n: int, pushes: bool) -> dict:
-    cfg = load_run_config(run)
-    task = resolve_task(cfg)
+    task = resolve_task(load_run_config(run))
     if not pushes:
         task = dataclasses.replace(task, pushes=dataclasses.replace(task.pushes, enabled=False))
-    env = G1VecEnv(dataclasses.replace(cfg.env, num_envs=n, seed=20001), task)
-    policy = checkpoint_motion_policy(cfg, env, f"{run}/checkpoints/{checkpoint}")
-    for part in env.components:
-        part.for_evaluation()
-    env.set_assist_enabled(False)
-    env.set_less_assist_reward(False)
-    env.reset_envs(torch.arange(n))
+    env, policy = alone_from_checkpoint(run, checkpoint, n, 20001, task)
     obs, active, rows = env.get_observations(), torch.ones(n, dtype=torch.bool), []
     since_push = torch.zeros(n)
     with torch.inference_mode():
