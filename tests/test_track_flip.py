@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 import torch
-from test_track_task import _on_reference
+from test_track_task import _on_reference, neutral_sim2sim, zero_action_joint_error
 
 from rl.envs.task_schema import quiet
 from rl.evaluation.alone import rollout_alone
@@ -207,10 +207,8 @@ def test_the_oracle_feedforward_holds_the_robot_up_at_zero_action(
     kd/kp qd_ref + tau_ref/kp, and at zero action over the held standing second the legs sag less
     than under the PD alone, in the env and in sim2sim from the bundle. Without actions around
     the reference the option is refused."""
-    from test_sim2sim import export_neutral_policy
 
     from optimal_control.artifact import OracleArtifact
-    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
     from robots import g1
 
     task = quiet(with_references(get_task("track"), (flip_artifact,), ""))
@@ -236,20 +234,9 @@ def test_the_oracle_feedforward_holds_the_robot_up_at_zero_action(
             expected = (qd * torch.as_tensor(g1.KD / g1.KP) + tau / torch.as_tensor(g1.KP)).float()
             torch.testing.assert_close(shift, expected if feedforward else torch.zeros_like(shift))
             if simulator == "env":
-                errors = []
-                for _ in range(25):
-                    env.step(torch.zeros(2, 35))
-                    s = env.env_state
-                    errors.append(
-                        float((s.joint_pos_rad - s.targets["joint_pos_rad"])[:, legs].abs().mean())
-                    )
-                return float(np.mean(errors))
-            folder = tmp_path / f"ff_{feedforward}"
-            folder.mkdir()
-            bundle = export_neutral_policy(env, folder)
+                return zero_action_joint_error(env, 25, legs)
+            bundle, seen = neutral_sim2sim(env, t, tmp_path / f"ff_{feedforward}", 25)
             assert ("action_feedforward" in bundle["control"]) == feedforward
-            seen: list[np.ndarray] = []
-            run_sim2sim(folder, t, 25, Sim2SimConfig(num_envs=2, seed=1), on_step=seen.append)
         finally:
             env.close()
         columns = {term["name"]: term["columns"] for term in bundle["observation"]["terms"]}

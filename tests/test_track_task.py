@@ -42,6 +42,30 @@ def env(wave_clip):
     env.close()
 
 
+def zero_action_joint_error(env, steps: int, joints) -> float:
+    """Mean |q - q_ref| [rad] over ``joints`` of the 2 robots of ``env`` at zero action."""
+    errors = []
+    for _ in range(steps):
+        env.step(torch.zeros(2, 35))
+        s = env.env_state
+        errors.append(float((s.joint_pos_rad - s.targets["joint_pos_rad"])[:, joints].abs().mean()))
+    return float(np.mean(errors))
+
+
+def neutral_sim2sim(env, task, folder, steps: int) -> tuple[dict, list[np.ndarray]]:
+    """Export a zero-action policy of ``env`` into ``folder`` and roll it out in sim2sim (2
+    robots, seed 1): its bundle and the policy observation of every step."""
+    from test_sim2sim import export_neutral_policy
+
+    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
+
+    folder.mkdir()
+    bundle = export_neutral_policy(env, folder)
+    seen: list[np.ndarray] = []
+    run_sim2sim(folder, task, steps, Sim2SimConfig(num_envs=2, seed=1), on_step=seen.append)
+    return bundle, seen
+
+
 def _on_reference(env, ahead: int = 1):
     """Put every robot exactly on the frame its command targets (with its floor offset)."""
     cmd, lay = env.command_gen, env.layout
@@ -312,9 +336,7 @@ def test_actions_around_the_reference_follow_it_at_zero_action(wave_clip, tmp_pa
     """``actions_around_reference``: PD targets q_ref + scale a, so zero action follows the waving
     shoulders, in the training env and in sim2sim from the bundle; around the standing pose it does
     not; a task without reference joints refuses the option."""
-    from test_sim2sim import command_term, export_neutral_policy
-
-    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
+    from test_sim2sim import command_term
 
     def tracking_error(around: bool) -> float:
         task = dataclasses.replace(quiet(track_task((wave_clip,))), actions_around_reference=around)
@@ -327,19 +349,9 @@ def test_actions_around_the_reference_follow_it_at_zero_action(wave_clip, tmp_pa
                 assert (
                     torch.allclose(env.joint_targets_to_actions(ref), torch.zeros(2, 29)) == around
                 )
-                errors = []
-                for _ in range(60):
-                    env.step(torch.zeros(2, 35))
-                    s = env.env_state
-                    err = s.joint_pos_rad - s.targets["joint_pos_rad"]
-                    errors.append(float(err[:, ARMS].abs().mean()))
-                return float(np.mean(errors))
-            folder = tmp_path / f"around_{around}"
-            folder.mkdir()
-            bundle = export_neutral_policy(env, folder)
+                return zero_action_joint_error(env, 60, ARMS)
+            bundle, seen = neutral_sim2sim(env, task, tmp_path / f"around_{around}", 60)
             assert ("action_base_command_columns" in bundle["control"]) == around
-            seen: list[np.ndarray] = []
-            run_sim2sim(folder, task, 60, Sim2SimConfig(num_envs=2, seed=1), on_step=seen.append)
         finally:
             env.close()
         columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}

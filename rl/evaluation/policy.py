@@ -210,9 +210,15 @@ def alone_from_checkpoint(
     that look inside a rollout (where it falls, which link touches)."""
     run_dir = Path(run_dir)
     train_cfg = load_run_config(run_dir)
+    path = run_dir / CHECKPOINT_DIR / checkpoint
+    if not path.is_file():
+        kept = sorted((run_dir / CHECKPOINT_DIR).glob("*.pt"), key=lambda p: p.stat().st_mtime)
+        raise FileNotFoundError(
+            f"{path} does not exist; the run's newest checkpoints: {[p.name for p in kept[-4:]]}"
+        )
     task = resolve_task(train_cfg) if task is None else task
     env = G1VecEnv(dataclasses.replace(train_cfg.env, num_envs=num_envs, seed=seed), task)
-    policy = checkpoint_motion_policy(train_cfg, env, run_dir / CHECKPOINT_DIR / checkpoint)
+    policy = checkpoint_motion_policy(train_cfg, env, path)
     for part in env.components:
         part.for_evaluation()
     env.set_assist_enabled(False)

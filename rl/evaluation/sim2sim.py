@@ -422,6 +422,8 @@ def run_sim2sim(
     scale = np.array([j["action_scale_rad"] for j in joints])
     base_cols = bundle["control"].get("action_base_command_columns")
     feedforward = bundle["control"].get("action_feedforward")
+    if feedforward is not None:  # (F, 29) planned torques, read once
+        ff_torque_nm = np.asarray(feedforward["joint_torque_nm"], dtype=np.float64)
     h = bundle["observation"]["history_length"]
     n = cfg.num_envs
     logic = TaskLogic(task, n, cfg.seed)
@@ -454,9 +456,7 @@ def run_sim2sim(
         target = default if base_cols is None else command[:, base_cols[0] : base_cols[1]]
         if feedforward is not None:  # the bundle's table, at the frame the command shows
             a, b = feedforward["joint_vel_command_columns"]
-            torque = np.asarray(feedforward["joint_torque_nm"])[
-                logic.command_gen.frame(ahead=1).numpy()
-            ]
+            torque = ff_torque_nm[logic.command_gen.frame(ahead=1).numpy()]
             target = target + kd / kp * command[:, a:b] + torque / kp
         target = target + scale * action
         kicks = pushes.kicks(dt)

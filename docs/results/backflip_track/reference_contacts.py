@@ -60,6 +60,8 @@ def policy_contacts(run: str, checkpoint: str, n: int = 32) -> dict:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
     hits = reference_contacts(sys.argv[1])
     out = {"artifact": sys.argv[1], "reference_frames_with_another_link_down": len(hits),
            "frames (frame, t s, links)": hits}  # fmt: skip

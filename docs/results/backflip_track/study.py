@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.studies.learning import read_evals
 
 MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6)
@@ -89,10 +90,12 @@ def main(out: Path, run_dirs: list[Path]) -> None:
     fig.suptitle("backflip by tracking, the policy alone from standing (32 fresh envs)")
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out / "study.png", dpi=100)
-    (out / "study.json").write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
+    atomic_savefig(fig, out / "study.png", dpi=100)
+    atomic_write_json(out / "study.json", {"summary": summary, "runs": runs})
     print(json.dumps(summary, indent=1))
 
 
 if __name__ == "__main__":
+    if len(sys.argv) < 3:
+        sys.exit(__doc__)
     main(Path(sys.argv[1]), [Path(p) for p in sys.argv[2:]])

@@ -88,5 +88,7 @@ def main(run: str, checkpoint: str, n: int) -> dict:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) < 3:
+        sys.exit(__doc__)
     n = int(sys.argv[3]) if len(sys.argv) > 3 else 32
     print(json.dumps(main(sys.argv[1], sys.argv[2], n), indent=1))

@@ -47,6 +47,8 @@ def falls(run: str, checkpoint: str, n: int, pushes: bool) -> dict:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) < 3:
+        sys.exit(__doc__)
     run, checkpoint = sys.argv[1], sys.argv[2]
     n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
     result = {"run": run, "checkpoint": checkpoint, "seed": 20001,

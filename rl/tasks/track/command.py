@@ -257,8 +257,8 @@ class MotionCommand(ClipTrackingCommand):
     def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Joint rates (N, 29) [rad/s] and planned joint torques (N, 29) [N m] of each env's next
         frame (0 torque where the reference has none: a clip)."""
-        nxt = self.frame(ahead=1)
-        return self._joint[nxt, g1.NUM_JOINTS :].clone(), self._torque[nxt].clone()
+        nxt = self.frame(ahead=1)  # indexing by a tensor copies: no clone needed
+        return self._joint[nxt, g1.NUM_JOINTS :], self._torque[nxt]
 
     def state_dict(self) -> dict[str, Any]:
         """Per-env references and frames, the failure counts and the last targets."""
