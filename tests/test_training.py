@@ -425,3 +425,18 @@ def test_a_learning_rate_stuck_at_the_adaptive_floor_is_detected() -> None:
     assert learning_rate_floored(stuck)
     assert not learning_rate_floored(stuck[:-1])  # too few iterations to tell
     assert not learning_rate_floored(stuck[:-1] + [{"learning_rate": 3e-4}])
+
+
+def test_eta_of_a_resumed_run_counts_the_whole_run(tmp_path, capsys) -> None:
+    """A resumed run restores the whole run's logged time: its ETA must divide that time by all
+    the iterations done, not by those since the resume (else 100x too long 100 iterations in)."""
+    from rl.training.runner import RunLogger
+
+    cfg = {"algorithm": {}, "num_steps_per_env": 24, "logger": "tensorboard"}
+    logger = RunLogger(str(tmp_path), cfg, {}, 4, False, 1, 0, "cpu")
+    logger.init_logging_writer()
+    logger.tot_time = 990.0  # 99 iterations of 10 s before the resume
+    # iteration 99, the first after a resume at 99, of 10 s: 100 of 200 left at 10 s each
+    logger.log(99, 99, 200, 5.0, 5.0, {"surrogate": 0.0}, 1e-3, torch.ones(3), None)
+    eta = capsys.readouterr().out.split("ETA:")[-1].split()[0]
+    assert eta == "0:16:40"

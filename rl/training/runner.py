@@ -182,9 +182,10 @@ class RunLogger(Logger):
                 "larger batch (--num-envs)",
                 file=sys.stderr,
             )
+        # rsl-rl's ETA divides the time logged so far by the iterations since start_it; a resumed
+        # run restores the whole run's time (state_dict), so count its iterations from 0 too
         super().log(
-            it, start_it, total_it, collect_time, learn_time, loss_dict, learning_rate, *args,
-            **kwargs,
+            it, 0, total_it, collect_time, learn_time, loss_dict, learning_rate, *args, **kwargs,
         )  # fmt: skip
 
     def state_dict(self) -> dict[str, Any]:
