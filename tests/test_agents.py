@@ -249,3 +249,46 @@ def test_kl_actions_is_checked() -> None:
 
     with pytest.raises(ValueError, match="--ppo-kl-actions"):
         TrainConfig(ppo=PPOConfig(kl_actions="assist"))
+
+
+@pytest.mark.parametrize("in_ratio", [True, False])
+def test_the_assist_actions_leave_ppos_ratio_once_help_is_off(in_ratio: bool) -> None:
+    """Once assistance is off for good, the assist actions move nothing: with
+    ``assist_in_ratio_unhelped`` False they leave the log-probability and the entropy, so PPO's
+    update no longer touches the assist head or its std; rsl-rl's joint action keeps both."""
+    torch.manual_seed(0)
+    actor = make_actor()
+    actor.assist_in_ratio_unhelped = in_ratio
+    obs = make_obs()
+    actions = actor(obs, stochastic_output=True)
+    full = actor.get_output_log_prob(actions)
+    mean, std = (p.detach() for p in actor.output_distribution_params)
+    motion = torch.distributions.Normal(mean[:, :29], std[:, :29])
+    actor.helping = False
+    expected = motion.log_prob(actions[:, :29]).sum(-1) if not in_ratio else full
+    torch.testing.assert_close(actor.get_output_log_prob(actions), expected)
+    entropy = motion.entropy().sum(-1) if not in_ratio else actor.distribution.entropy
+    torch.testing.assert_close(actor.output_entropy, entropy)
+    actor.helping = True  # while it helps, the joint action in either case
+    torch.testing.assert_close(actor.get_output_log_prob(actions), full)
+
+    critic = MLPModel(make_obs(), {"critic": ["critic"]}, "critic", 1, hidden_dims=(16,))
+    storage = RolloutStorage("rl", N, 4, make_obs(), [35])
+    alg = A2CFPPO(actor, critic, storage, num_learning_epochs=2, num_mini_batches=2)
+    alg.set_helping(False)
+    fill_storage(alg, 4)
+    assist = [p.clone() for p in actor.mlp.assist.parameters()]
+    std_before = actor.distribution.std_param.detach().clone()
+    alg.update()
+    moved = [bool((a != b).any()) for a, b in zip(assist, actor.mlp.assist.parameters(), strict=True)]
+    std_after = actor.distribution.std_param.detach()
+    assert any(moved) == in_ratio
+    assert bool((std_after[29:] != std_before[29:]).any()) == in_ratio
+    assert (std_after[:29] != std_before[:29]).any()  # the motion actions keep learning
+
+
+def test_assist_in_ratio_is_checked() -> None:
+    from rl.training.config import PPOConfig, TrainConfig
+
+    with pytest.raises(ValueError, match="--ppo-assist-in-ratio"):
+        TrainConfig(ppo=PPOConfig(assist_in_ratio="never"))

@@ -137,3 +137,20 @@ def test_only_locks_of_ended_processes_are_taken_over(tmp_path) -> None:
         with pytest.warns(StaleLockWarning, match="belongs to another process"), RunFolderLock(run):
             assert json.loads((run / LOCK_FILE).read_text())["pid"] == os.getpid()
     assert not run.exists() or not (run / LOCK_FILE).exists()
+
+
+def test_a_run_made_before_a_field_existed_resumes_with_what_it_ran_with(tmp_path) -> None:
+    """Each field of FIELDS_ADDED_LATER missing from a saved config reads as the value the run
+    trained with, not today's default (the flip A2CF run of Dec 5 keeps the assist actions in
+    PPO's ratio after its help ends)."""
+    from rl.runs.folder import FIELDS_ADDED_LATER, load_run_config
+    from rl.training.config import TrainConfig
+
+    data = TrainConfig().to_dict()
+    for section, name in FIELDS_ADDED_LATER:
+        del data[section][name]
+    (tmp_path / "config.json").write_text(json.dumps({"train": data}))
+    cfg = load_run_config(tmp_path)
+    for (section, name), value in FIELDS_ADDED_LATER.items():
+        assert getattr(getattr(cfg, section), name) == value
+    assert cfg.ppo.assist_in_ratio == "always" != TrainConfig().ppo.assist_in_ratio

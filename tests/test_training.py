@@ -440,3 +440,25 @@ def test_eta_of_a_resumed_run_counts_the_whole_run(tmp_path, capsys) -> None:
     logger.log(99, 99, 200, 5.0, 5.0, {"surrogate": 0.0}, 1e-3, torch.ones(3), None)
     eta = capsys.readouterr().out.split("ETA:")[-1].split()[0]
     assert eta == "0:16:40"
+
+
+@pytest.mark.parametrize("assist_in_ratio", ["while_helping", "always"])
+def test_the_assist_head_rests_once_the_curriculum_turns_help_off(tmp_path, assist_in_ratio):
+    """A 1-iteration anneal turns assistance off after the first update; from then on the
+    default leaves the assist actions out of PPO's ratio and entropy (their std stays where it
+    was), rsl-rl's joint action ("always") keeps widening it under the entropy bonus."""
+    cfg = tiny_config(
+        tmp_path, "a2cf", iterations=4, curriculum=CurriculumConfig(anneal_iterations=1),
+        ppo=dataclasses.replace(TINY_PPO, assist_in_ratio=assist_in_ratio, entropy_coef=0.05),
+    )  # fmt: skip
+    run = train(cfg, verbose=False).run_dir
+
+    def assist_std(k: int) -> torch.Tensor:
+        state = torch.load(run / CHECKPOINT_DIR / f"model_{k}.pt", weights_only=False)
+        return state["actor_state_dict"]["distribution.std_param"][29:]
+
+    log = read_jsonl(run / CURRICULUM_LOG)
+    assert [row["assist_enabled"] for row in log] == [False] * 4
+    # iteration 2 on: no help (Adam's first moments of the assist head cleared at the switch)
+    moved = bool((assist_std(4) != assist_std(1)).any())
+    assert moved == (assist_in_ratio == "always")

@@ -96,7 +96,7 @@ PAPER_RULES: dict[str, Any] = {
 }
 """The :class:`CurriculumConfig` fields that give the paper's Algorithm 1 exactly (the other
 defaults are the paper's; the PPO side of the paper adds ``--ppo-assist-init-noise-std 1.0
---ppo-kl-actions all``): ``CurriculumConfig(**PAPER_RULES)``, on the command line
+--ppo-kl-actions all --ppo-assist-in-ratio always``): ``CurriculumConfig(**PAPER_RULES)``, on the command line
 ``--curriculum-force-measure mean --curriculum-skill-measure helped
 --curriculum-skill-learned-progress 1.0 --curriculum-alone-share 0 --curriculum-anneal-iterations 0``."""
 

@@ -25,6 +25,7 @@ from rsl_rl.modules import MLP, EmpiricalNormalization
 from rsl_rl.utils import resolve_class
 from tensordict import TensorDict
 from torch import nn
+from torch.distributions import Normal
 
 from rl.agents.vae import HistoryEncoder
 
@@ -109,6 +110,11 @@ class A2CFActor(MLPModel):
             only (False: over the joint action, rsl-rl's). Measured (dance, 128 envs, 2 + 1
             passes): with the oracle's warm-started assist head the joint KL held the learning
             rate at a median 5.9e-5 against 2.0e-4 without it, before and after the help was gone.
+        assist_in_ratio_unhelped: the assist actions stay in PPO's log-probability (its ratio)
+            and entropy once assistance is off for good (:attr:`helping` False), rsl-rl's joint
+            action. False: only the motion actions count then; the 6 assist actions no longer
+            move the env, so their terms are noise in every ratio, and the entropy bonus would
+            widen their std without end.
         policy_group / history_group / privileged_group: names of the env's observation groups.
     """
 
@@ -130,6 +136,7 @@ class A2CFActor(MLPModel):
         distribution_cfg: dict | None = None,
         assist_init_std: float | None = None,
         kl_motion_only: bool = False,
+        assist_in_ratio_unhelped: bool = True,
         policy_group: str = "policy",
         history_group: str = "history",
         privileged_group: str = "privileged",
@@ -177,6 +184,8 @@ class A2CFActor(MLPModel):
         self.num_motion_actions = num_motion_actions
         self.has_assist = has_assist
         self.kl_motion_only = kl_motion_only
+        self.assist_in_ratio_unhelped = assist_in_ratio_unhelped
+        self.helping = True  # assistance on: the runner sets it from the curriculum
         self.assist_privileged = has_assist and assist_privileged
         self.history_length = history_dim // obs_dim
         self.policy_obs_dim = obs_dim
@@ -245,6 +254,30 @@ class A2CFActor(MLPModel):
             old_params = tuple(p[..., :n] for p in old_params)
             new_params = tuple(p[..., :n] for p in new_params)
         return super().get_kl_divergence(old_params, new_params)
+
+    def _motion_only(self) -> bool:
+        return self.has_assist and not self.helping and not self.assist_in_ratio_unhelped
+
+    def _motion_distribution(self) -> Normal:
+        mean, std = self.distribution.params
+        n = self.num_motion_actions
+        return Normal(mean[..., :n], std[..., :n])
+
+    @property
+    def output_entropy(self) -> torch.Tensor:
+        """Entropy of the action distribution (of the motion actions only where
+        :meth:`_motion_only`)."""
+        if self._motion_only():
+            return self._motion_distribution().entropy().sum(dim=-1)
+        return super().output_entropy
+
+    def get_output_log_prob(self, outputs: torch.Tensor) -> torch.Tensor:
+        """Log-probability of actions (of their motion part only where :meth:`_motion_only`:
+        set before a rollout, so a rollout and its update count the same actions)."""
+        if self._motion_only():
+            n = self.num_motion_actions
+            return self._motion_distribution().log_prob(outputs[..., :n]).sum(dim=-1)
+        return super().get_output_log_prob(outputs)
 
     def normalized_history(self, history: torch.Tensor) -> torch.Tensor:
         """Normalise each of the ``H`` stacked observations, shape kept (..., H * P)."""

@@ -91,6 +91,28 @@ class A2CFPPO(PPO):
         losses.update(self.update_encoder())
         return losses
 
+    def set_helping(self, helping: bool) -> None:
+        """Whether assistance is on (the curriculum's): the actor counts the assist actions in
+        PPO's ratio and entropy while it is, and after it only where it always does
+        (``assist_in_ratio_unhelped``). At the switch off, Adam's first moments of the assist
+        head and std are cleared: their gradients are zero from then on, and the moments of the
+        helped updates would otherwise keep moving them for tens of steps."""
+        actor = self.actor
+        stopping = actor.helping and not helping
+        actor.helping = helping
+        if not (stopping and actor.has_assist and not actor.assist_in_ratio_unhelped):
+            return
+        n = actor.num_motion_actions
+        std = getattr(actor.distribution, "std_param", None)
+        if std is None:
+            std = actor.distribution.log_std_param
+        for param, rows in [(p, slice(None)) for p in actor.mlp.assist.parameters()] + [
+            (std, slice(n, None))
+        ]:
+            moment = self.optimizer.state.get(param, {}).get("exp_avg")
+            if moment is not None:
+                moment[rows] = 0.0
+
     def _encoder_dataset(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(history (M, H*P), next clean obs (M, P), base velocity (M, 3)) of valid transitions."""
         if self._last_obs is None:

@@ -291,6 +291,7 @@ FIELDS_ADDED_LATER: dict[tuple[str, str], Any] = {
     ("curriculum", "anneal_iterations"): 0,  # no fixed schedule before it (default 200 since)
     ("model", "vae_learning_epochs"): 0,  # the encoder made PPO's passes before the option
     ("ppo", "kl_actions"): "all",  # the joint action's KL before the option
+    ("ppo", "assist_in_ratio"): "always",  # the joint action in PPO's ratio before the option
 }
 """``TrainConfig`` fields added after runs were made, with the value those runs trained with: a
 config without the field is read with it (a resume continues as it began)."""

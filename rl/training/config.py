@@ -42,6 +42,8 @@ class PPOConfig:
     kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" actions' or "all" (rsl-rl's) [-]
     assist_init_noise_std: float = 0.3
     """initial std of the raw assist actions, before tanh (the paper: 1.0) [-]"""
+    assist_in_ratio: str = "while_helping"
+    """PPO's ratio and entropy over the assist actions "while_helping" (dropped once the curriculum has turned assistance off for good) or "always" (rsl-rl's joint action) [-]"""
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared (a saved config is checked on load too)."""
@@ -151,6 +153,11 @@ class TrainConfig:
             raise ValueError(
                 f"--ppo-kl-actions must be 'motion' or 'all', got '{self.ppo.kl_actions}'"
             )
+        if self.ppo.assist_in_ratio not in ("while_helping", "always"):
+            raise ValueError(
+                f"--ppo-assist-in-ratio must be 'while_helping' or 'always', got "
+                f"'{self.ppo.assist_in_ratio}'"
+            )
         if not 0.0 <= self.random_mask_prob < 1.0:
             raise ValueError(f"--random-mask-prob must be in [0, 1), got {self.random_mask_prob}")
         if get_mode(self.mode).coach_help != bool(self.coach.source):
@@ -256,6 +263,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
     init_noise_std = ppo.pop("init_noise_std")
     assist_init_std = ppo.pop("assist_init_noise_std")
     kl_actions = ppo.pop("kl_actions")
+    assist_in_ratio = ppo.pop("assist_in_ratio")
     return {
         "num_steps_per_env": cfg.num_steps_per_env,
         # rsl-rl calls save() every iteration: last.pt is always the latest state; the runner
@@ -283,6 +291,7 @@ def rsl_rl_config(cfg: TrainConfig, mode: ModeSpec) -> dict[str, Any]:
             "distribution_cfg": {"class_name": "GaussianDistribution", "init_std": init_noise_std},
             "assist_init_std": assist_init_std if mode.assist else None,
             "kl_motion_only": kl_actions == "motion",
+            "assist_in_ratio_unhelped": assist_in_ratio == "always",
         },
         "critic": {
             "class_name": "MLPModel",

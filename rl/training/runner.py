@@ -274,6 +274,8 @@ class A2CFRunner(OnPolicyRunner):
         if self.algorithm1 is None:
             return
         row = self.env.end_iteration()  # the RecordingEnv's: Algorithm 1, applied to the env
+        # the next rollout and its update count the assist actions only while they act
+        self.alg.set_helping(self.algorithm1.curriculum.assist_enabled)
         if self.logger.writer is not None:  # TensorBoard Curriculum/* with this iteration
             self.logger.ep_extras.append(curriculum_log(row, self.env.task.phase_names))
 
@@ -420,6 +422,7 @@ class A2CFRunner(OnPolicyRunner):
                 raise ValueError(f"{path} holds no curriculum, this run's mode needs one")
             self.algorithm1.load_state_dict(state["a2cf"])
             apply_curriculum(self.env, self.algorithm1.curriculum)
+            self.alg.set_helping(self.algorithm1.curriculum.assist_enabled)
         self.logger.load_state_dict(state["logger"])
         torch.set_rng_state(state["torch_rng_state"])
         if self.alone_eval is not None:
