@@ -234,6 +234,30 @@ def test_pushes_kick_the_base():
     assert (speed > still_speed + 0.05).all()
 
 
+def test_training_can_push_harder_than_the_evaluations_judge():
+    """train_velocity_xy_mps sets the training pushes; an evaluation (env.for_evaluation) pushes
+    at velocity_xy_mps, the strength the skill is judged at."""
+    pushed = variant(
+        quiet(STAND),
+        pushes=dict(
+            enabled=True, interval_range_s=(0.02, 0.02), velocity_xy_mps=0.2,
+            train_velocity_xy_mps=1.5,
+        ),
+    )  # fmt: skip
+
+    def largest_kick(evaluation: bool) -> float:
+        env = make_env(pushed, 16, num_threads=2, seed=3)
+        if evaluation:
+            env.for_evaluation()
+        env.step(zero_actions(env))
+        return float(np.abs(env.state[:, env.layout.qvel][:, :2]).max())
+
+    assert largest_kick(evaluation=False) > 0.8
+    assert largest_kick(evaluation=True) < 0.2 + 0.05
+    with pytest.raises(ValueError, match="train_velocity_xy_mps"):
+        variant(STAND, pushes=dict(train_velocity_xy_mps=-1.0))
+
+
 def crouch_start(env_ids, qpos, qvel, generator):
     """Start 5 cm lower with the left knee bent more (an initial-state hook)."""
     qpos[:, 2] -= 0.05

@@ -15,7 +15,8 @@ if TYPE_CHECKING:
 
 class Pushes(DeclaredState):
     """Per-env push timers (N,) [s]; an env whose timer runs out gets a uniform horizontal kick of
-    at most ``velocity_xy_mps`` per axis and a new interval from ``interval_range_s``."""
+    at most ``train_velocity_xy_mps`` per axis in training (``velocity_xy_mps`` where that is 0,
+    and after :meth:`for_evaluation`) and a new interval from ``interval_range_s``."""
 
     state_attributes = ("timer_s",)
     """Saved and restored by :class:`~rl.envs.declared_state.DeclaredState`."""
@@ -32,6 +33,11 @@ class Pushes(DeclaredState):
         (the generator's)."""
         self.cfg, self.step_dt_s, self.generator, self.device = cfg, step_dt_s, generator, device
         self.timer_s = torch.zeros(num_envs, device=device)
+        self.velocity_xy_mps = cfg.train_velocity_xy_mps or cfg.velocity_xy_mps
+
+    def for_evaluation(self) -> None:
+        """Push as the skill is judged: at most ``velocity_xy_mps``."""
+        self.velocity_xy_mps = self.cfg.velocity_xy_mps
 
     def apply(self, physics: Physics) -> None:
         """Count one policy step down and kick the envs whose timer ran out (before the physics)."""
@@ -41,7 +47,7 @@ class Pushes(DeclaredState):
         ids = (self.timer_s <= 0).nonzero().flatten()
         if ids.numel() == 0:
             return
-        vmax = self.cfg.velocity_xy_mps
+        vmax = self.velocity_xy_mps
         kick = (
             2 * torch.rand(ids.numel(), 2, generator=self.generator, device=self.device) - 1
         ) * vmax

@@ -60,12 +60,19 @@ class PushConfig:
     enabled: bool = True  # push the robots
     interval_range_s: tuple[float, float] = (3.0, 6.0)  # time between two pushes [s]
     velocity_xy_mps: float = 0.5  # largest +- horizontal base velocity change of a push [m/s]
+    train_velocity_xy_mps: float = 0.0
+    """largest push while training; 0: velocity_xy_mps. Evaluations of the policy alone always push at velocity_xy_mps, so training can push harder than the skill is judged at [m/s]"""
 
     def __post_init__(self) -> None:
         low, high = self.interval_range_s
         if not 0 < low <= high:
             raise ValueError(
                 f"push interval_range_s must be (low, high) with 0 < low <= high, got {(low, high)}"
+            )
+        if self.velocity_xy_mps < 0 or self.train_velocity_xy_mps < 0:
+            raise ValueError(
+                f"push velocities must be >= 0 m/s, got velocity_xy_mps {self.velocity_xy_mps} "
+                f"and train_velocity_xy_mps {self.train_velocity_xy_mps}"
             )
 
 

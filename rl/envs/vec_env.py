@@ -119,6 +119,13 @@ class G1VecEnv(VecEnv):
     def episode_length_buf(self, value: torch.Tensor) -> None:
         self.resets.episode_length_buf = value
 
+    def for_evaluation(self) -> None:
+        """The finished skill's setting, for an evaluation of the policy alone: each task
+        component's (e.g. a command curriculum's full ranges) and the judged pushes."""
+        for component in self.components:
+            component.for_evaluation()
+        self.pushes.for_evaluation()
+
     def set_assist_bound(self, eta: torch.Tensor) -> None:
         """Set eta (num_phases, 6) [N, Nm], the per-phase, per-axis wrench bound."""
         self.assist.set_bound(eta)

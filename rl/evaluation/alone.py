@@ -46,8 +46,7 @@ def rollout_alone(
     ``task_metrics`` (its evaluator may write figures into ``out_dir``). Returns survival share,
     mean return and episode length, whether the task's target is reached, and the task metrics.
     """
-    for component in env.components:
-        component.for_evaluation()
+    env.for_evaluation()
     env.set_assist_enabled(False)
     env.set_less_assist_reward(False)
     n = env.num_envs

@@ -219,8 +219,7 @@ def alone_from_checkpoint(
     task = resolve_task(train_cfg) if task is None else task
     env = G1VecEnv(dataclasses.replace(train_cfg.env, num_envs=num_envs, seed=seed), task)
     policy = checkpoint_motion_policy(train_cfg, env, path)
-    for part in env.components:
-        part.for_evaluation()
+    env.for_evaluation()
     env.set_assist_enabled(False)
     env.set_less_assist_reward(False)
     env.reset_envs(torch.arange(num_envs, device=env.device))

@@ -203,8 +203,7 @@ def rollout_reference(
         )
     if assist is not None and assist_bound is None:
         raise ValueError("rollout_reference: an assist needs its bound (assist_bound, eta0)")
-    for component in env.components:
-        component.for_evaluation()
+    env.for_evaluation()
     env.set_less_assist_reward(False)
     env.set_random_mask_prob(0.0)
     env.set_assist_enabled(assist is not None)

@@ -33,8 +33,7 @@ def turn(velocity: bool, torque: bool, n: int = 4, steps: int = 70) -> list[tupl
     task = dataclasses.replace(task, terminations=(), action_feedforward=velocity or torque)
     env = make_env(task, n, num_threads=1, seed=5)
     cmd, motion = env.command_gen, env.motion
-    for part in env.components:
-        part.for_evaluation()
+    env.for_evaluation()
     env.set_assist_enabled(False)
     sample = cmd._sample
 
