@@ -17,7 +17,7 @@ import numpy as np
 from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.studies.learning import read_evals
 
-MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6)
+MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6, 18.0e6, 24.0e6, 30.0e6)
 """Env steps at which every run that reached them is compared."""
 
 
@@ -45,6 +45,34 @@ def flip_rows(run_dir: Path) -> list[dict]:
     return rows
 
 
+def help_rows(run_dir: Path, window: int = 20) -> list[tuple[float, float, float]]:
+    """The help on the training envs per iteration (TensorBoard's ``Assist/force_norm_n`` and
+    ``Assist/torque_norm_nm``, the mean over all training envs, alone ones included), as
+    (env steps, force [N], torque [N m]), each a mean over ``window`` iterations."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    cfg = json.loads((run_dir / "config.json").read_text())["train"]
+    per_iteration = cfg["env"]["num_envs"] * cfg["num_steps_per_env"]
+    series: dict[str, dict[int, float]] = {"Assist/force_norm_n": {}, "Assist/torque_norm_nm": {}}
+    for events in sorted(run_dir.glob("events.out.tfevents*")):  # a resume adds a file
+        acc = EventAccumulator(str(events), size_guidance={"scalars": 0})
+        acc.Reload()
+        for tag, values in series.items():
+            if tag in acc.Tags()["scalars"]:
+                values.update({e.step: e.value for e in acc.Scalars(tag)})
+    force, torque = series.values()
+    steps = sorted(set(force) & set(torque))
+    rows = []
+    for k in range(0, len(steps) - window + 1, window):
+        chunk = steps[k : k + window]
+        rows.append((
+            (chunk[-1] + 1) * per_iteration,
+            float(np.mean([force[i] for i in chunk])),
+            float(np.mean([torque[i] for i in chunk])),
+        ))  # fmt: skip
+    return rows
+
+
 def main(out: Path, run_dirs: list[Path]) -> None:
     import matplotlib
 
@@ -68,19 +96,30 @@ def main(out: Path, run_dirs: list[Path]) -> None:
                 "reached_land": round(float(np.mean([r["reached_land"] for r in last3])), 2),
                 "episode_s": round(float(np.mean([r["episode_s"] for r in last3])), 2),
             }
+        helps = help_rows(next(d for d in run_dirs if d.name == name))
         summary[name] = {
             "evaluated_env_steps": rows[-1]["env_steps"],
+            "help_at_the_end (force N, torque N m; mean of the last 20 iterations)": (
+                [round(helps[-1][1], 2), round(helps[-1][2], 2)] if helps else None
+            ),
             "flips_landed_best": max(r["flips_landed"] for r in rows),
             "at_env_steps (mean of the 3 evaluations up to it)": marks,
         }
     keys = [("turn_rad_mean", "turn alone, mean [rad]"), ("turn_rad_max", "turn alone, best env [rad]"),
             ("flips_landed", "flips landed alone"), ("episode_s", "episode length alone [s]")]  # fmt: skip
-    fig, axes = plt.subplots(1, len(keys), figsize=(4.6 * len(keys), 3.8))
-    for name, rows in runs.items():
+    fig, axes = plt.subplots(1, len(keys) + 1, figsize=(4.6 * (len(keys) + 1), 3.8))
+    for d in run_dirs:
+        name, rows = d.name, runs[d.name]
         x = np.array([r["env_steps"] for r in rows]) / 1e6
-        for ax, (k, _) in zip(axes, keys, strict=True):
+        for ax, (k, _) in zip(axes, keys, strict=False):
             ax.plot(x, [r[k] for r in rows], marker=".", ms=3, lw=1, label=name)
-    for ax, (k, label) in zip(axes, keys, strict=True):
+        helps = help_rows(d)
+        if helps:
+            axes[-1].plot([h[0] / 1e6 for h in helps], [h[1] for h in helps], lw=1, label=name)
+    axes[-1].set_xlabel("env steps [M]")
+    axes[-1].set_ylabel("help in training: mean force [N]")
+    axes[-1].grid(alpha=0.3)
+    for ax, (k, label) in zip(axes, keys, strict=False):
         ax.set_xlabel("env steps [M]")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
