@@ -284,3 +284,38 @@ def test_the_judge_allows_the_links_the_reference_puts_down(flip_artifact) -> No
     finally:
         lib.link_ground_contact[:] = kept
         env.close()
+
+
+def test_sim2sim_judges_flips_as_the_training_physics_does(flip_artifact, tmp_path) -> None:
+    """sim2sim scores its rollouts with the task's flip judge too (``task_metrics``): a robot
+    holding the reference's joints at zero action stands through the held start, tips over and
+    is cut off when the reference leaps, at the same step in both simulators, with the same
+    verdicts and nearly the same turn and tracking error."""
+    from test_sim2sim import export_neutral_policy
+
+    from rl.evaluation.sim2sim import Sim2SimConfig, run_sim2sim
+
+    task = dataclasses.replace(
+        quiet(with_references(get_task("track"), (flip_artifact,), "")),
+        actions_around_reference=True,
+    )
+    env = make_env(task, 2, num_threads=1)
+    try:
+        export_neutral_policy(env, tmp_path)
+        trained = rollout_alone(env, lambda obs: torch.zeros(2, 29))
+        steps = int(env.max_episode_length)
+    finally:
+        env.close()
+    other = run_sim2sim(tmp_path, task, steps, Sim2SimConfig(num_envs=2, seed=1))
+    judged, ours = other["task_metrics"], trained["task_metrics"]
+    assert judged["success_rate"] == other["survival_fraction"] == 0.0
+    assert judged["flips_landed"] == ours["flips_landed"] == 0.0
+    assert judged["phase_reached"] == ours["phase_reached"]
+    # it tips over forwards (-0.76 rad here): the same turn, read from the sim2sim robots' pelvis
+    assert ours["turn_rad_mean"] < -0.3
+    assert abs(judged["turn_rad_mean"] - ours["turn_rad_mean"]) < 0.15
+    assert abs(judged["joint_error_rad"] / ours["joint_error_rad"] - 1) < 0.2
+    length = trained["mean_episode_length_steps"]
+    assert 25 < length < steps - 25  # cut off along the leap, not at either end
+    assert abs(other["mean_episode_length_steps"] - length) <= 3
+    assert abs(judged["frames_scored"] - ours["frames_scored"]) <= 6

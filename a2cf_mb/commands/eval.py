@@ -32,4 +32,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{'metric':<28} {'training physics':>17} {'sim2sim':>10}")
         for key in ("survival_fraction", "mean_return", "mean_episode_length_steps"):
             print(f"{key:<28} {result[key]:>17.3f} {other[key]:>10.3f}")
+        ours, theirs = result.get("task_metrics", {}), other.get("task_metrics", {})
+        for key, value in ours.items():  # the task's judge, where sim2sim scored with it too
+            if isinstance(value, float) and isinstance(theirs.get(key), float):
+                if not key.startswith("statue_"):
+                    print(f"{key:<28} {value:>17.3f} {theirs[key]:>10.3f}")
     return 0

@@ -30,7 +30,9 @@ runs on flat ground here), and the skill measure (e.g. walk's terrain levels) is
 The task's own termination and reward terms score the rollouts (same metrics as ``eval``) on an
 :class:`EnvState` of the sim2sim robots (feet, link-ground contacts, joint accelerations, foot
 timers, episode time, command, phase; no wrench), and the task's pushes are applied as in training
-(same interval and size, own generator), so the two columns compare like with like.
+(same interval and size, own generator), so the two columns compare like with like. Where the
+task's evaluation reads no more than the sim2sim robots have (``in_sim2sim``: the tracking and
+flip judges), it scores the rollouts too (``task_metrics``: flips landed, turn, tracking errors).
 """
 
 from __future__ import annotations
@@ -169,6 +171,21 @@ class TaskLogic:
         [s] (0: the initial state)."""
         self.phase = self.phase_machine.update(state)
         self.command = self.command_gen.compute(state, dt_s)
+
+
+class _EvaluatedEnv:
+    """What a task's evaluator reads of the training env (:class:`G1VecEnv`'s names), for the
+    sim2sim robots: their latest :class:`EnvState` and the task's logic. Used for evaluations
+    that say they need no more (``in_sim2sim``: the tracking and flip judges)."""
+
+    def __init__(self, task: TaskConfig, logic: TaskLogic, state: EnvState) -> None:
+        self.task, self.logic, self.env_state = task, logic, state
+        self.num_envs, self.step_dt_s = state.joint_pos_rad.shape[0], state.step_dt_s
+        self.command_gen = logic.command_gen
+        self.task_components = self  # the env's parts: the command's targets below
+
+    phase = property(lambda self: self.logic.phase, doc="(N,) phase of the next step.")
+    targets = property(lambda self: self.logic.command_gen.targets(), doc="The next targets.")
 
 
 class _Robots:
@@ -433,6 +450,9 @@ def run_sim2sim(
     tau = np.zeros((n, 29))
     logic.advance(robots.state(logic, tau, last_action, last_action, 0.0), 0.0)
     pushes = _Pushes(task.pushes, n, cfg.seed)
+    judged = task.evaluation is not None and getattr(task.evaluation, "in_sim2sim", False)
+    view = _EvaluatedEnv(task, logic, robots.state(logic, tau, last_action, last_action, 0.0))
+    evaluator = task.evaluation.build(view) if judged else None
     history = [None] * n
     active = np.ones(n, dtype=bool)
     fell = np.zeros(n, dtype=bool)
@@ -480,14 +500,30 @@ def run_sim2sim(
         returns += np.where(active, reward, 0.0)
         lengths += active
         fell |= active & failed
+        was_active = active.copy()
         active &= ~failed
         ends = logic.command_gen.time_outs()  # a tracking reference's last frame: survived
-        if ends is not None:
-            active &= ~ends.numpy()
+        ends = np.zeros(n, dtype=bool) if ends is None else ends.numpy()
+        active &= ~ends
         logic.advance(state, dt)
+        if evaluator is not None:  # as rollout_alone calls it: after the step, next targets set
+            view.env_state = state
+            evaluator.on_step(
+                view, torch.from_numpy(was_active), torch.from_numpy(failed | ends),
+                {"time_outs": torch.from_numpy(ends & ~failed)},
+            )  # fmt: skip
         last_action = action
         if not active.any():
             break
+    metrics = {}
+    if evaluator is not None:
+        import tempfile
+
+        from rl.evaluation.alone import _json_ready
+
+        with tempfile.TemporaryDirectory() as tmp:  # its figure is the training physics' one
+            metrics = {"task_metrics": _json_ready(evaluator.finish(tmp))}
+        metrics["task_metrics"].pop("plot", None)
     return {
         "simulator": "sim2sim: 1 kHz x 20, URDF collision meshes, elliptic cone, Euler, explicit PD",
         "physics_dt_s": cfg.physics_dt_s,
@@ -498,4 +534,5 @@ def run_sim2sim(
         "survival_fraction": float((~fell).mean()),
         "mean_return": float(returns.mean()),
         "mean_episode_length_steps": float(lengths.mean()),
+        **metrics,
     }

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -31,6 +31,9 @@ PELVIS = TRACKED_BODIES.index("pelvis")
 class TrackEvaluationConfig:
     """The tracking evaluation: its thresholds and figure."""
 
+    in_sim2sim: ClassVar[bool] = True
+    """Its evaluator reads only what the sim2sim robots have (:class:`rl.evaluation.sim2sim`
+    scores their rollouts with it too)."""
     max_joint_error_rad: float = 0.16  # mean |q - q_ref| that counts as tracked (paper) [rad]
     max_statue_ratio: float = 0.5  # joint error at most this share of the statue's [-]
     plot_name: str = "eval_track.png"  # figure written into the run folder [-]
