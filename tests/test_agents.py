@@ -280,7 +280,9 @@ def test_the_assist_actions_leave_ppos_ratio_once_help_is_off(in_ratio: bool) ->
     assist = [p.clone() for p in actor.mlp.assist.parameters()]
     std_before = actor.distribution.std_param.detach().clone()
     alg.update()
-    moved = [bool((a != b).any()) for a, b in zip(assist, actor.mlp.assist.parameters(), strict=True)]
+    moved = [
+        bool((a != b).any()) for a, b in zip(assist, actor.mlp.assist.parameters(), strict=True)
+    ]
     std_after = actor.distribution.std_param.detach()
     assert any(moved) == in_ratio
     assert bool((std_after[29:] != std_before[29:]).any()) == in_ratio

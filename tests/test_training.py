@@ -462,3 +462,27 @@ def test_the_assist_head_rests_once_the_curriculum_turns_help_off(tmp_path, assi
     # iteration 2 on: no help (Adam's first moments of the assist head cleared at the switch)
     moved = bool((assist_std(4) != assist_std(1)).any())
     assert moved == (assist_in_ratio == "always")
+
+
+@pytest.mark.parametrize("speed", [1.0, 0.25])
+def test_eval_video_slow_motion_draws_every_step(tmp_path, speed: float) -> None:
+    """--video-speed below 1 draws every control step and plays them slower (a flip's half
+    second); real time draws every second step at 1 / (2 dt)."""
+    import imageio.v2 as imageio
+
+    from optimal_control.render import RenderUnavailableError
+    from rl.evaluation.policy import _render_qpos
+    from robots import g1
+
+    pose = np.concatenate([[0.0, 0.0, 0.8, 1.0, 0.0, 0.0, 0.0], g1.STAND_JOINT_POS_RAD])
+    qpos = np.tile(pose, (8, 1))
+    try:
+        path = _render_qpos(qpos, 0.02, str(tmp_path / "v.mp4"), "stand", ghost_qpos=None,
+                            ghost_side_m=0.0, speed=speed)  # fmt: skip
+    except RenderUnavailableError as err:
+        pytest.skip(f"no offscreen rendering here: {err}")
+    reader = imageio.get_reader(path)
+    frames, fps = reader.count_frames(), reader.get_meta_data()["fps"]
+    assert (frames, fps) == ((4, 25.0) if speed == 1.0 else (8, 12.5))
+    with pytest.raises(ValueError, match="--video-speed"):
+        EvalConfig(video_speed=0.0)

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{key:<28} {result[key]:>17.3f} {other[key]:>10.3f}")
         ours, theirs = result.get("task_metrics", {}), other.get("task_metrics", {})
         for key, value in ours.items():  # the task's judge, where sim2sim scored with it too
-            if isinstance(value, float) and isinstance(theirs.get(key), float):
-                if not key.startswith("statue_"):
-                    print(f"{key:<28} {value:>17.3f} {theirs[key]:>10.3f}")
+            scalar = isinstance(value, float) and isinstance(theirs.get(key), float)
+            if scalar and not key.startswith("statue_"):
+                print(f"{key:<28} {value:>17.3f} {theirs[key]:>10.3f}")
     return 0

@@ -52,6 +52,7 @@ class EvalConfig:
     video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
     video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length, or to the reference's length on a tracking task [s]
     video_ghost_side_m: float = 1.0  # the reference's ghost (tracking tasks) shifted to the camera's right; 0 overlays it on the robot's reference pose [m]
+    video_speed: float = 1.0  # playback speed of the video; below 1 every step is drawn and played slower (0.25: a flip's half second lasts 2 s) [-]
     sim2sim: bool = (
         False  # also roll the ONNX policy out in the second simulator (rl.evaluation.sim2sim)
     )
@@ -62,6 +63,10 @@ class EvalConfig:
     def __post_init__(self) -> None:
         if self.num_envs < 1:
             raise ValueError(f"eval num_envs must be >= 1, got {self.num_envs}")
+        if not 0.01 <= self.video_speed <= 4.0:
+            raise ValueError(
+                f"eval --video-speed must be in [0.01, 4] (1: real time), got {self.video_speed}"
+            )
         if self.num_steps < 0:
             raise ValueError(
                 f"eval num_steps must be >= 0 (0: one full episode), got {self.num_steps}"
@@ -159,6 +164,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
                     train_cfg.task,
                     ghost_qpos=frames.ghost_qpos(),
                     ghost_side_m=cfg.video_ghost_side_m,
+                    speed=cfg.video_speed,
                     captions=frames.captions if any(frames.captions) else None,
                 )
             )
@@ -303,10 +309,12 @@ def _render_qpos(
     ghost_qpos: np.ndarray | None,
     ghost_side_m: float,
     captions: list[str] | None = None,
+    speed: float = 1.0,
 ) -> Path:
     """Kinematic replay video of MuJoCo configurations (T, 36) with the full visual G1 model;
     ``ghost_qpos`` (T, 36): the reference pose of each frame, drawn as a ghost ``ghost_side_m``
-    [m] to the camera's right; ``captions`` (T,): each frame's command in words."""
+    [m] to the camera's right; ``captions`` (T,): each frame's command in words; ``speed``:
+    playback speed (below 1: every frame drawn, played slower)."""
     from optimal_control.reference import Reference
     from optimal_control.render import RenderConfig, render_reference
     from robots.conventions import mj_to_pin_q
@@ -326,6 +334,9 @@ def _render_qpos(
     )
     ghost_q = None if ghost_qpos is None else mj_to_pin_q(np.asarray(ghost_qpos))
     cfg = dataclasses.replace(RenderConfig(), ghost_side_m=ghost_side_m)
+    if speed != 1.0:
+        stride = 1 if speed < 1.0 else cfg.frame_stride
+        cfg = dataclasses.replace(cfg, frame_stride=stride, fps=speed / (dt_s * stride))
     return render_reference(ref, path, cfg, ghost_q=ghost_q, captions=captions)
 
 
