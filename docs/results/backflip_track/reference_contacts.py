@@ -1,8 +1,8 @@
 """Which links other than the soles touch the ground along a flip reference played exactly (the
 robot put on each frame, with the tracking task's floor offset), and along a policy's episodes
 (the checkpoint's deterministic policy alone from standing, 32 fresh envs of the evaluation's
-seed): the first such link and its time. The flip judge counts any such contact as a failed
-landing.
+seed): the first such link and its time, where the reference keeps that link off the ground
+(within the judge's margin, 0.1 s): the contacts the flip judge counts as a failed landing.
 
     python docs/results/backflip_track/reference_contacts.py ARTIFACT [RUN_DIR CHECKPOINT]
 """
@@ -45,7 +45,9 @@ def policy_contacts(run: str, checkpoint: str, n: int = 32) -> dict:
     names = env.env_state.contact_body_names
     with torch.inference_mode():
         for step in range(int(env.max_episode_length)):
-            down = env.env_state.body_ground_contact & active[:, None]
+            margin = round(0.1 / env.step_dt_s)  # the flip judge's contact_margin_s
+            allowed = env.command_gen.reference_link_contact(names, margin)
+            down = env.env_state.body_ground_contact & ~allowed & active[:, None]
             for i, b in torch.nonzero(down).tolist():
                 first.setdefault(i, (round(step * env.step_dt_s, 2), names[b]))
             actions = policy(obs["policy"], obs["history"])
