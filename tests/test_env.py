@@ -258,6 +258,32 @@ def test_training_can_push_harder_than_the_evaluations_judge():
         variant(STAND, pushes=dict(train_velocity_xy_mps=-1.0))
 
 
+def test_training_can_aim_the_pushes_backwards():
+    """train_backward_share 1: every training kick pushes the robot backwards along its heading
+    (random yaw), sideways parts kept; an evaluation pushes uniformly again."""
+    pushed = variant(
+        quiet(STAND),
+        pushes=dict(
+            enabled=True, interval_range_s=(0.02, 0.02), velocity_xy_mps=1.0,
+            train_backward_share=1.0,
+        ),
+        initial_state=dict(random_yaw=True),
+    )  # fmt: skip
+
+    def forward_kicks(evaluation: bool) -> np.ndarray:
+        env = make_env(pushed, 32, num_threads=2, seed=4)
+        if evaluation:
+            env.for_evaluation()
+        env.step(zero_actions(env))
+        return env.env_state.base_lin_vel_b[:, 0].numpy()
+
+    assert (forward_kicks(evaluation=False) < 0.02).all()
+    uniform = forward_kicks(evaluation=True)
+    assert (uniform > 0.1).sum() > 5 and (uniform < -0.1).sum() > 5
+    with pytest.raises(ValueError, match="train_backward_share"):
+        variant(STAND, pushes=dict(train_backward_share=1.5))
+
+
 def crouch_start(env_ids, qpos, qvel, generator):
     """Start 5 cm lower with the left knee bent more (an initial-state hook)."""
     qpos[:, 2] -= 0.05

@@ -62,12 +62,18 @@ class PushConfig:
     velocity_xy_mps: float = 0.5  # largest +- horizontal base velocity change of a push [m/s]
     train_velocity_xy_mps: float = 0.0
     """largest push while training; 0: velocity_xy_mps. Evaluations of the policy alone always push at velocity_xy_mps, so training can push harder than the skill is judged at [m/s]"""
+    train_backward_share: float = 0.0
+    """share of training kicks turned to push the robot backwards (the kick's forward component in the robot's heading frame made negative; evaluations never): stand's and walk-flat's falls are backward kicks [-]"""
 
     def __post_init__(self) -> None:
         low, high = self.interval_range_s
         if not 0 < low <= high:
             raise ValueError(
                 f"push interval_range_s must be (low, high) with 0 < low <= high, got {(low, high)}"
+            )
+        if not 0.0 <= self.train_backward_share <= 1.0:
+            raise ValueError(
+                f"push train_backward_share must be in [0, 1], got {self.train_backward_share}"
             )
         if self.velocity_xy_mps < 0 or self.train_velocity_xy_mps < 0:
             raise ValueError(
