@@ -17,7 +17,7 @@ import numpy as np
 from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.studies.learning import read_evals
 
-MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6, 18.0e6, 24.0e6, 30.0e6)
+MARKS = (1.1e6, 3.1e6, 6.3e6, 9.2e6, 12.0e6, 15.0e6, 18.0e6, 24.0e6, 30.0e6)
 """Env steps at which every run that reached them is compared."""
 
 
@@ -94,6 +94,7 @@ def main(out: Path, run_dirs: list[Path]) -> None:
                 "turn_rad_mean": round(float(np.mean([r["turn_rad_mean"] for r in last3])), 2),
                 "turn_rad_max_best": round(max(r["turn_rad_max"] for r in upto), 2),
                 "reached_land": round(float(np.mean([r["reached_land"] for r in last3])), 2),
+                "flips_landed": round(float(np.mean([r["flips_landed"] for r in last3])), 3),
                 "episode_s": round(float(np.mean([r["episode_s"] for r in last3])), 2),
             }
         helps = help_rows(next(d for d in run_dirs if d.name == name))
