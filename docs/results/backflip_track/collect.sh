@@ -8,8 +8,11 @@
 set -euo pipefail
 DST=$(dirname "$0")
 KEEP_LAST=1 KEEP_ONLY=${KEEP_ONLY:-flip_ff_baseline_s0} bash "$DST/../copy_runs.sh" "${1:-runs/backflip_track}" "$DST"
+# each record's live run folder where this machine has it: its TensorBoard events hold the help
+SRC=${1:-runs/backflip_track}
 runs=()
 for rec in "$DST"/flip_*_s*/; do
-  [ -f "$rec/evals.jsonl" ] && runs+=("$rec")
+  name=$(basename "$rec")
+  if [ -f "$SRC/$name/evals.jsonl" ]; then runs+=("$SRC/$name"); elif [ -f "$rec/evals.jsonl" ]; then runs+=("$rec"); fi
 done
 python "$DST/study.py" "$DST" "${runs[@]}"

@@ -109,14 +109,14 @@ def main(out: Path, run_dirs: list[Path]) -> None:
     keys = [("turn_rad_mean", "turn alone, mean [rad]"), ("turn_rad_max", "turn alone, best env [rad]"),
             ("flips_landed", "flips landed alone"), ("episode_s", "episode length alone [s]")]  # fmt: skip
     fig, axes = plt.subplots(1, len(keys) + 1, figsize=(4.6 * (len(keys) + 1), 3.8))
-    for d in run_dirs:
-        name, rows = d.name, runs[d.name]
+    for k_run, d in enumerate(run_dirs):
+        name, rows, color = d.name, runs[d.name], f"C{k_run % 10}"  # one colour per run
         x = np.array([r["env_steps"] for r in rows]) / 1e6
         for ax, (k, _) in zip(axes, keys, strict=False):
-            ax.plot(x, [r[k] for r in rows], marker=".", ms=3, lw=1, label=name)
+            ax.plot(x, [r[k] for r in rows], marker=".", ms=3, lw=1, label=name, color=color)
         helps = help_rows(d)
         if helps:
-            axes[-1].plot([h[0] / 1e6 for h in helps], [h[1] for h in helps], lw=1, label=name)
+            axes[-1].plot([h[0] / 1e6 for h in helps], [h[1] for h in helps], lw=1, color=color)
     axes[-1].set_xlabel("env steps [M]")
     axes[-1].set_ylabel("help in training: mean force [N]")
     axes[-1].grid(alpha=0.3)
@@ -131,7 +131,8 @@ def main(out: Path, run_dirs: list[Path]) -> None:
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
     atomic_savefig(fig, out / "study.png", dpi=100)
-    atomic_write_json(out / "study.json", {"summary": summary, "runs": runs})
+    helps = {d.name: help_rows(d) for d in run_dirs}  # (env steps, force N, torque N m)
+    atomic_write_json(out / "study.json", {"summary": summary, "runs": runs, "help": helps})
     print(json.dumps(summary, indent=1))
 
 
