@@ -184,3 +184,18 @@ def test_a_live_runs_metric_rows_are_read_from_its_jsonl_or_the_records_gzip(tmp
     (tmp_path / "metrics.jsonl").unlink()
     (tmp_path / "metrics.jsonl.gz").write_bytes(gzip.compress(text.encode()))
     assert read_metric_rows(tmp_path) == rows
+
+
+def test_study_scripts_end_bad_input_in_one_line(monkeypatch) -> None:
+    """The docs/results study scripts' guard: a missing checkpoint or a bad number is one line
+    naming the script, not a traceback; other errors still raise."""
+    from rl.evaluation.policy import one_line_errors
+
+    monkeypatch.setattr("sys.argv", ["judge_margin.py"])
+    missing = r"^judge_margin.py: .*model_9.pt does not exist"
+    with pytest.raises(SystemExit, match=missing), one_line_errors():
+        raise FileNotFoundError("runs/x/checkpoints/model_9.pt does not exist")
+    with pytest.raises(SystemExit, match="invalid literal"), one_line_errors():
+        int("many")
+    with pytest.raises(KeyError), one_line_errors():
+        raise KeyError("a bug is not bad input")

@@ -6,8 +6,9 @@ import contextlib
 import dataclasses
 import io
 import json
+import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -200,6 +201,16 @@ def _require_exported_policy(run_dir: Path, exported: bool) -> None:
         f"exported policy {run_dir / POLICY_FILE} not found (the run has not finished, or the file "
         f"was removed): {REEXPORT_ADVICE.format(run_dir=run_dir)}"
     )
+
+
+@contextlib.contextmanager
+def one_line_errors() -> Iterator[None]:
+    """For the study scripts under ``docs/results``: a missing or damaged run file, or an argument
+    that is not a number, ends the script with one line naming it instead of a traceback."""
+    try:
+        yield
+    except (FileNotFoundError, ValueError) as err:  # DamagedRunFileError is a ValueError
+        sys.exit(f"{Path(sys.argv[0]).name}: {err}")
 
 
 def alone_from_checkpoint(

@@ -448,10 +448,11 @@ def run_sim2sim(
     datas = robots.datas
     last_action = np.zeros((n, 29))
     tau = np.zeros((n, 29))
-    logic.advance(robots.state(logic, tau, last_action, last_action, 0.0), 0.0)
+    start = robots.state(logic, tau, last_action, last_action, 0.0)
+    logic.advance(start, 0.0)
     pushes = _Pushes(task.pushes, n, cfg.seed)
     judged = task.evaluation is not None and getattr(task.evaluation, "in_sim2sim", False)
-    view = _EvaluatedEnv(task, logic, robots.state(logic, tau, last_action, last_action, 0.0))
+    view = _EvaluatedEnv(task, logic, start)
     evaluator = task.evaluation.build(view) if judged else None
     history = [None] * n
     active = np.ones(n, dtype=bool)

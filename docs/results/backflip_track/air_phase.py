@@ -17,7 +17,7 @@ import sys
 import numpy as np
 import torch
 
-from rl.evaluation.policy import alone_from_checkpoint
+from rl.evaluation.policy import alone_from_checkpoint, one_line_errors
 from robots import g1
 
 HIP = [g1.JOINT_NAMES.index(f"{s}_hip_pitch_joint") for s in ("left", "right")]
@@ -65,6 +65,7 @@ def main(run: str, checkpoint: str, n: int, first: int, last: int) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    n = int(sys.argv[3]) if len(sys.argv) > 3 else 32
-    first, last = (int(sys.argv[4]), int(sys.argv[5])) if len(sys.argv) > 5 else (105, 150)
-    print(json.dumps(main(sys.argv[1], sys.argv[2], n, first, last), indent=1))
+    with one_line_errors():
+        n = int(sys.argv[3]) if len(sys.argv) > 3 else 32
+        first, last = (int(sys.argv[4]), int(sys.argv[5])) if len(sys.argv) > 5 else (105, 150)
+        print(json.dumps(main(sys.argv[1], sys.argv[2], n, first, last), indent=1))

@@ -14,7 +14,7 @@ import json
 import sys
 
 from rl.evaluation.alone import rollout_alone
-from rl.evaluation.policy import alone_from_checkpoint
+from rl.evaluation.policy import alone_from_checkpoint, one_line_errors
 from rl.runs.folder import load_run_config
 from rl.tasks.registry import resolve_task
 
@@ -36,10 +36,11 @@ def landed(run: str, checkpoint: str, n: int, seed: int, margin_s: float) -> dic
 if __name__ == "__main__":
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    run, checkpoint = sys.argv[1], sys.argv[2]
-    n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
-    seed = int(sys.argv[4]) if len(sys.argv) > 4 else 20000
-    margins = [float(m) for m in sys.argv[5:]] or [0.1, 0.3]
-    out = {"run": run, "checkpoint": checkpoint, "num_envs": n, "seed": seed,
-           "by_contact_margin_s": {m: landed(run, checkpoint, n, seed, m) for m in margins}}  # fmt: skip
-    print(json.dumps(out, indent=1))
+    with one_line_errors():
+        run, checkpoint = sys.argv[1], sys.argv[2]
+        n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
+        seed = int(sys.argv[4]) if len(sys.argv) > 4 else 20000
+        margins = [float(m) for m in sys.argv[5:]] or [0.1, 0.3]
+        out = {"run": run, "checkpoint": checkpoint, "num_envs": n, "seed": seed,
+               "by_contact_margin_s": {m: landed(run, checkpoint, n, seed, m) for m in margins}}  # fmt: skip
+        print(json.dumps(out, indent=1))

@@ -43,9 +43,9 @@ def policy_contacts(run: str, checkpoint: str, n: int = 32) -> dict:
     env, policy = alone_from_checkpoint(run, checkpoint, n, 10000)
     obs, active, first = env.get_observations(), torch.ones(n, dtype=torch.bool), {}
     names = env.env_state.contact_body_names
+    margin = round(0.1 / env.step_dt_s)  # the flip judge's contact_margin_s, in frames
     with torch.inference_mode():
         for step in range(int(env.max_episode_length)):
-            margin = round(0.1 / env.step_dt_s)  # the flip judge's contact_margin_s
             allowed = env.command_gen.reference_link_contact(names, margin)
             down = env.env_state.body_ground_contact & ~allowed & active[:, None]
             for i, b in torch.nonzero(down).tolist():
@@ -64,9 +64,12 @@ def policy_contacts(run: str, checkpoint: str, n: int = 32) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) < 2:
         sys.exit(__doc__)
-    hits = reference_contacts(sys.argv[1])
-    out = {"artifact": sys.argv[1], "reference_frames_with_another_link_down": len(hits),
-           "frames (frame, t s, links)": hits}  # fmt: skip
-    if len(sys.argv) > 3:
-        out["policy"] = policy_contacts(sys.argv[2], sys.argv[3])
-    print(json.dumps(out, indent=1))
+    from rl.evaluation.policy import one_line_errors
+
+    with one_line_errors():
+        hits = reference_contacts(sys.argv[1])
+        out = {"artifact": sys.argv[1], "reference_frames_with_another_link_down": len(hits),
+               "frames (frame, t s, links)": hits}  # fmt: skip
+        if len(sys.argv) > 3:
+            out["policy"] = policy_contacts(sys.argv[2], sys.argv[3])
+        print(json.dumps(out, indent=1))

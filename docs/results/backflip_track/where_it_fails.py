@@ -15,7 +15,7 @@ from collections import Counter
 import numpy as np
 import torch
 
-from rl.evaluation.policy import alone_from_checkpoint
+from rl.evaluation.policy import alone_from_checkpoint, one_line_errors
 from rl.runs.folder import load_run_config
 from rl.tasks.registry import resolve_task
 from rl.tasks.track.library import pitch_increment_rad
@@ -90,5 +90,6 @@ def main(run: str, checkpoint: str, n: int) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    n = int(sys.argv[3]) if len(sys.argv) > 3 else 32
-    print(json.dumps(main(sys.argv[1], sys.argv[2], n), indent=1))
+    with one_line_errors():
+        n = int(sys.argv[3]) if len(sys.argv) > 3 else 32
+        print(json.dumps(main(sys.argv[1], sys.argv[2], n), indent=1))

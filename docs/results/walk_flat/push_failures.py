@@ -18,7 +18,7 @@ from collections import Counter
 
 import torch
 
-from rl.evaluation.policy import alone_from_checkpoint
+from rl.evaluation.policy import alone_from_checkpoint, one_line_errors
 from rl.runs.folder import load_run_config
 from rl.tasks.registry import resolve_task
 
@@ -81,9 +81,10 @@ def falls(run: str, checkpoint: str, n: int, pushes: bool) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) < 3:
         sys.exit(__doc__)
-    run, checkpoint = sys.argv[1], sys.argv[2]
-    n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
-    result = {"run": run, "checkpoint": checkpoint, "seed": 20001,
-              "with_pushes": falls(run, checkpoint, n, True),
-              "without_pushes": falls(run, checkpoint, n, False)}  # fmt: skip
-    print(json.dumps(result, indent=1))
+    with one_line_errors():
+        run, checkpoint = sys.argv[1], sys.argv[2]
+        n = int(sys.argv[3]) if len(sys.argv) > 3 else 128
+        result = {"run": run, "checkpoint": checkpoint, "seed": 20001,
+                  "with_pushes": falls(run, checkpoint, n, True),
+                  "without_pushes": falls(run, checkpoint, n, False)}  # fmt: skip
+        print(json.dumps(result, indent=1))
