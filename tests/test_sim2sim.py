@@ -190,7 +190,8 @@ def test_sim2sim_dance_starts_on_its_clip_frame_and_follows_the_clip(tmp_path) -
     assert [p["name"] for p in term["parts"]] == [
         "base_step_displacement", "base_step_rotation", "joint_pos_ref"]  # fmt: skip
     seen: list[np.ndarray] = []
-    run_sim2sim(tmp_path, DANCE, 20, Sim2SimConfig(num_envs=n, seed=seed), on_step=seen.append)
+    exact = Sim2SimConfig(num_envs=n, seed=seed, randomize=False)  # no observation noise
+    run_sim2sim(tmp_path, DANCE, 20, exact, on_step=seen.append)
     assert len(seen) >= 5
     # The clip frames this seed draws (the command's own draws, as in training).
     generator = torch.Generator().manual_seed(seed)
@@ -210,6 +211,42 @@ def test_sim2sim_dance_starts_on_its_clip_frame_and_follows_the_clip(tmp_path) -
         np.testing.assert_allclose(command, lib.command[env_first + k + 1], atol=1e-6)
         _, _, dones, _ = env.step(torch.zeros(n, 35))
         assert not dones.any()
+
+
+def test_sim2sim_robots_on_one_reference_frame_differ_by_their_own_draws(tmp_path) -> None:
+    """Every tracking robot starts on the reference's first frame; each has its own draw of the
+    task's friction, payload and CoM (its own model) and its own observation noise, so the N
+    rollouts differ (``randomize``); without them (or on a ``quiet`` task) they are one rollout."""
+    from rl.evaluation.sim2sim import observation_noise
+    from rl.tasks.registry import get_task
+
+    task, n = get_task("track"), 3
+    env = make_env(task, n, num_threads=1)
+    bundle = export_neutral_policy(env, tmp_path)
+    env.close()
+    noise = observation_noise(bundle, task)
+    columns = {t["name"]: t["columns"] for t in bundle["observation"]["terms"]}
+    amplitude = {t.name: t.noise for t in task.observations.policy.terms}
+    for name, (start, stop) in columns.items():
+        assert (noise[start:stop] == amplitude[name]).all()
+    assert noise.any() and not observation_noise(bundle, quiet(task)).any()
+
+    def rollout(cfg: Sim2SimConfig, on: TaskConfig = task) -> tuple[dict, np.ndarray]:
+        seen: list[np.ndarray] = []
+        result = run_sim2sim(tmp_path, on, 30, cfg, on_step=seen.append)
+        return result, np.stack(seen)  # (T, N, P)
+
+    same, obs = rollout(Sim2SimConfig(num_envs=n, seed=2, randomize=False))
+    assert not same["randomized"] and not same["observation_noise"]
+    np.testing.assert_array_equal(obs[:, 1:], np.broadcast_to(obs[:, :1], obs[:, 1:].shape))
+    drawn, noisy = rollout(Sim2SimConfig(num_envs=n, seed=2))
+    assert drawn["randomized"] and drawn["observation_noise"]
+    first = noisy[0] - obs[0]  # the same start: only the noise differs, within its half-width
+    assert (np.abs(first) <= noise + 1e-6).all() and (first[:, noise > 0] != 0).mean() > 0.99
+    np.testing.assert_allclose(first[:, noise == 0], 0.0, atol=1e-6)  # the command: noiseless
+    later = np.abs(noisy[-1] - noisy[-1, :1]).max(axis=-1)  # the robots' own physics parted them
+    assert (later[1:] > 0).all()
+    assert rollout(Sim2SimConfig(num_envs=n, seed=2), quiet(task))[0]["randomized"] is False
 
 
 def test_sim2sim_link_contacts_end_an_episode(tmp_path) -> None:

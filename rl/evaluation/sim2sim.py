@@ -18,6 +18,12 @@ observation                  the env's terms                          rebuilt fr
                                                                       description (robot-side)
 ============================ ======================================== ===========================
 
+Like the training physics' evaluation, each robot has its own draw of the task's domain
+randomisation (friction, payload, CoM offset: its own ``MjModel`` copy) and its policy terms' own
+uniform observation noise, from sim2sim's generators (``Sim2SimConfig.randomize``). So a task whose
+robots all start on one frame (a tracking reference) still gets N different rollouts, not one
+rollout N times; a ``quiet`` task has neither.
+
 What is shared with training, on purpose, is the task's logic: its command generator and phase
 machine (``task.commands``, ``task.phases``) are built from the task config and driven in the
 training env's order (:class:`TaskLogic`), in their evaluation setting (``for_evaluation``: e.g. the
@@ -37,6 +43,7 @@ flip judges), it scores the rollouts too (``task_metrics``: flips landed, turn, 
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,7 +57,7 @@ import torch
 from rl.agents.export import OnnxMotionPolicy
 from rl.envs.contact_timers import ContactTimers
 from rl.envs.model import contact_bodies
-from rl.envs.randomization import nominal_params
+from rl.envs.randomization import ModelRandomizer, nominal_params, sample_params
 from rl.envs.state import EnvState, quat_rotate_inverse
 from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import GRAVITY_MPS2
@@ -73,6 +80,7 @@ class Sim2SimConfig:
     impratio: float = 10.0  # frictional-to-normal impedance ratio of the elliptic cone [-]
     joint_pos_noise_rad: float = 0.05  # uniform +- initial joint offset from the default pose [rad]
     seed: int = 1  # seed of the initial states and of the task's command and phase draws [-]
+    randomize: bool = True  # the task's randomisation ranges and observation noise, own draws
 
     def __post_init__(self) -> None:
         if self.num_envs < 1 or self.physics_dt_s <= 0:
@@ -124,6 +132,22 @@ def bundle_observation(
             )
         obs[start:stop] = term["scale"] * signals[term["name"]]
     return obs
+
+
+def observation_noise(bundle: dict, task: TaskConfig) -> np.ndarray:
+    """Half-widths (P,) of the uniform noise the training env adds to each column of the policy
+    observation: each bundle term's noise in the task's policy group, zero where the group is
+    not noisy (a ``quiet`` task) or the bundle has a term the task does not."""
+    width = bundle["observation"]["width"]
+    group = task.observations.policy
+    if not group.noisy:
+        return np.zeros(width)
+    amplitude = {term.name: term.noise for term in group.terms}
+    out = np.zeros(width)
+    for term in bundle["observation"]["terms"]:
+        start, stop = term["columns"]
+        out[start:stop] = amplitude.get(term["name"], 0.0)
+    return out
 
 
 def _lin_vel_b(data: mujoco.MjData) -> np.ndarray:
@@ -194,17 +218,34 @@ class _Robots:
     :class:`ContactTimers`), the link-ground contacts of the training env's contact bodies."""
 
     def __init__(
-        self, model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, step_dt_s: float
+        self,
+        model: mujoco.MjModel,
+        qpos: np.ndarray,
+        qvel: np.ndarray,
+        step_dt_s: float,
+        params: torch.Tensor | None = None,
+        payload_body: str = "torso_link",
     ) -> None:
-        """Robots at ``qpos`` (N, 36), ``qvel`` (N, 35), stepped every ``step_dt_s`` [s]."""
+        """Robots at ``qpos`` (N, 36), ``qvel`` (N, 35), stepped every ``step_dt_s`` [s];
+        ``params`` (N, 5): each robot's randomisation row (its own copy of ``model``, the
+        payload on ``payload_body``), None: all step with the nominal ``model``."""
         self.model = model
+        n = self.num_envs = qpos.shape[0]
+        if params is None:
+            self.models = [model] * n
+            self._randomization = nominal_params(n, model)
+        else:
+            writer = ModelRandomizer.for_model(model, payload_body)
+            self.models = [copy.copy(model) for _ in range(n)]
+            for own, row in zip(self.models, params.numpy(), strict=True):
+                writer.apply(own, row)
+            self._randomization = params.float()
         self.datas = []
-        for q, v in zip(qpos, qvel, strict=True):
-            data = mujoco.MjData(model)
+        for own, q, v in zip(self.models, qpos, qvel, strict=True):
+            data = mujoco.MjData(own)
             data.qpos[:], data.qvel[:] = q, v
-            mujoco.mj_forward(model, data)
+            mujoco.mj_forward(own, data)
             self.datas.append(data)
-        n = self.num_envs = len(self.datas)
         self.contact_body_names = contact_bodies(model)
         self._body_column = np.full(model.nbody, -1)
         for col, name in enumerate(self.contact_body_names):
@@ -214,7 +255,6 @@ class _Robots:
         self._soles = [model.site(s).id for s in g1.SOLE_FRAMES]
         limits = np.array([model.joint(j.name).range for j in g1.JOINTS])
         self._joint_limits = torch.tensor(limits).float()
-        self._randomization = nominal_params(n, model)
         self.weight_n = float(model.body_subtreemass[0]) * GRAVITY_MPS2
         self.step_dt_s = step_dt_s
         self.contacts = ContactTimers(n, step_dt_s)
@@ -444,7 +484,16 @@ def run_sim2sim(
     h = bundle["observation"]["history_length"]
     n = cfg.num_envs
     logic = TaskLogic(task, n, cfg.seed)
-    robots = _Robots(model, *_initial_states(model, task, logic, cfg), dt)
+    qpos0, qvel0 = _initial_states(model, task, logic, cfg)
+    draws = torch.Generator().manual_seed(cfg.seed + 2)  # the command's draws stay training's
+    params = (
+        sample_params(n, task.randomization, draws)
+        if cfg.randomize and task.randomization.enabled
+        else None
+    )
+    robots = _Robots(model, qpos0, qvel0, dt, params, task.randomization.payload_body)
+    noise = observation_noise(bundle, task) if cfg.randomize else np.zeros(0)
+    noise_rng = np.random.default_rng(cfg.seed + 3)
     datas = robots.datas
     last_action = np.zeros((n, 29))
     tau = np.zeros((n, 29))
@@ -466,6 +515,8 @@ def run_sim2sim(
                                last_action[i], command[i], _lin_vel_b(d))
             for i, d in enumerate(datas)
         ])  # fmt: skip
+        if noise.any():
+            obs = obs + (2 * noise_rng.random(obs.shape) - 1) * noise
         if on_step is not None:
             on_step(obs)
         for i in range(n):
@@ -490,7 +541,7 @@ def run_sim2sim(
                     kp * (target[i] - data.qpos[7:]) - kd * data.qvel[6:], -effort, effort
                 )
                 data.qfrc_applied[6:] = tau[i]
-                mujoco.mj_step(model, data)
+                mujoco.mj_step(robots.models[i], data)
         robots.after_step()
         state = robots.state(logic, tau, action, last_action, (step + 1) * dt)
         per_term = [t(state) for t in task.terminations]
@@ -529,6 +580,8 @@ def run_sim2sim(
         "simulator": "sim2sim: 1 kHz x 20, URDF collision meshes, elliptic cone, Euler, explicit PD",
         "physics_dt_s": cfg.physics_dt_s,
         "pushes": bool(task.pushes.enabled),
+        "randomized": params is not None,  # each robot its own friction, payload, CoM draw
+        "observation_noise": bool(noise.any()),
         "decimation": decimation,
         "num_envs": n,
         "num_steps": num_steps,
