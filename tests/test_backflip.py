@@ -100,6 +100,39 @@ def test_infeasible_setting_names_violated_groups(model, tmp_path):
     assert np.load(path)["r"].shape == (make_grid(weak).num_knots, NR)
 
 
+def test_shin_heights_are_the_training_envs_shin_box(model):
+    """The TO's shin heights are the corners of the knee link's collision box in the training
+    env's model (mesh-free, fitted primitives): its lowest corner is MuJoCo's distance from that
+    box to the floor, standing and in a crouch with the shank tilted forward."""
+    import mujoco
+
+    from rl.envs.model import build_physics_model
+    from robots.conventions import pin_to_mj_qpos
+
+    mj = build_physics_model()
+    data = mujoco.MjData(mj)
+    floor = mj.geom("floor").id
+    shin = mj.geom("left_knee_link_collision").id
+    crouch = model.r_stand()
+    crouch[3:6] += np.array([-0.9, 1.6, -0.7])  # hip, knee and ankle pitch
+    for r in (model.r_stand(), crouch):
+        q, _, _ = model.to_full(r[None], np.zeros((1, NR)), np.zeros((1, NR)))
+        data.qpos[:] = pin_to_mj_qpos(q[0])
+        mujoco.mj_forward(mj, data)
+        distance = mujoco.mj_geomDistance(mj, data, shin, floor, 1.0, np.zeros(6))
+        lowest = float(np.min(model.shin_heights(r)))
+        assert abs(lowest - distance) < 1e-4, (lowest, distance)
+    assert float(np.min(model.shin_heights(model.r_stand()))) > 0.01  # standing: above
+
+
+def test_shin_clearance_is_a_named_constraint_group(model, tmp_path):
+    """Asking the shins to stay higher than they are standing cannot be met: the error names
+    the group."""
+    high = dataclasses.replace(TINY_HOP, shin_clearance=True, min_shin_height_m=0.05, max_iter=30)
+    with pytest.raises(InfeasibleBackflipError, match="shin clearance"):
+        solve_backflip_to(high, model, failure_path=tmp_path / "last.npz")
+
+
 def test_bad_config_values_are_named():
     with pytest.raises(ValueError, match="crouch"):
         BackflipConfig(crouch_duration_s=(0.5, 0.2, 0.3)).validate()

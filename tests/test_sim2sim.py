@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 import torch
@@ -284,3 +285,30 @@ def test_sim2sim_pushes_the_robots_as_training_does() -> None:
     assert np.abs(kicks).max() <= 0.5
     off = _Pushes(PushConfig(enabled=False), 4, seed=0)
     assert not np.any([off.kicks(0.02) for _ in range(500)])
+
+
+def test_sim2sim_settings_can_be_set_back_to_the_training_physics() -> None:
+    """Each second-simulator setting can take the training physics' value (to find where a gap
+    comes from); a wrong name is refused with the options."""
+    from rl.envs.model import build_physics_model, contact_bodies
+    from rl.evaluation.sim2sim import build_sim2sim_model
+
+    own = build_sim2sim_model(Sim2SimConfig())
+    assert own.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert own.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    assert (own.geom_type == mujoco.mjtGeom.mjGEOM_MESH).any()
+    back = build_sim2sim_model(
+        Sim2SimConfig(cone="pyramidal", integrator="implicitfast", link_meshes=False)
+    )
+    assert back.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert back.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    colliding = (back.geom_contype != 0) & (back.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+    assert not colliding.any()  # the link primitives collide instead, on the same links
+    assert contact_bodies(back) == contact_bodies(build_physics_model())
+    with pytest.raises(ValueError, match="cone 'cylinder' is not one of"):
+        Sim2SimConfig(cone="cylinder")
+    shins = build_sim2sim_model(Sim2SimConfig(links_off_floor=("left_knee_link",)))
+    knee = shins.geom_bodyid == shins.body("left_knee_link").id
+    assert (own.geom_contype[knee] == 2).any() and not shins.geom_contype[knee].any()
+    with pytest.raises(ValueError, match="'left_shin' is not a link of the G1"):
+        build_sim2sim_model(Sim2SimConfig(links_off_floor=("left_shin",)))

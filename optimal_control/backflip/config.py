@@ -92,6 +92,10 @@ class BackflipConfig:
     acceleration_weight: float = 1e-4  # cost on joint accelerations^2 integrated [s^3/rad^2]
     min_pelvis_height_m: float = 0.4  # pelvis origin stays this high throughout [m]
     min_limb_height_m: float = 0.1  # hands and knees stay this high throughout [m]
+    # the shins' collision boxes (the training env's primitives, which enclose the URDF meshes)
+    # stay min_shin_height_m high at every knot; off: a deep crouch may rest them on the floor
+    shin_clearance: bool = False
+    min_shin_height_m: float = 0.02  # [m]
     cop_margin: float = 0.15  # heel and toe each carry at least this share of the sole load [-]
     sole_drift_tolerance_m: float = 0.002  # stance soles stay this close to their placement [m]
     min_air_sole_height_m: float = 0.0  # sole corners above the floor in the air [m]

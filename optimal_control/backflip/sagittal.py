@@ -27,6 +27,7 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import casadi as ca
+import mujoco
 import numpy as np
 
 from optimal_control.casadi_dynamics import (
@@ -65,6 +66,8 @@ class SagittalModel:
         sole_points(r) -> (3, 2) world positions of the left heel and toe [m]
         sole_points_velocity(r, rd) -> (3, 2) their world velocities [m/s]
         clearance_heights(r) -> (2,) heights of the left hand and knee (same as right) [m]
+        shin_heights(r) -> (8,) heights of the corners of the left shin's collision box (the
+            training env's primitive of the knee link, which encloses its URDF mesh) [m]
     """
 
     robot: G1Pinocchio  # the G1 with rotor armature on the joint rows (a copy of the shared model)
@@ -75,6 +78,7 @@ class SagittalModel:
     sole_points: ca.Function
     sole_points_velocity: ca.Function
     clearance_heights: ca.Function  # r -> (left hand z, left knee z) [m]
+    shin_heights: ca.Function  # r -> (8,) left shin collision box corner heights [m]
     lower_r: np.ndarray  # (NR,) position lower bounds (base entries -inf) [m, rad]
     upper_r: np.ndarray  # (NR,) position upper bounds [m, rad]
     velocity_limit: np.ndarray  # (NR,) speed bounds (base entries inf) [m/s, rad/s]
@@ -122,6 +126,27 @@ def sagittal_model_for(cfg: BackflipConfig) -> SagittalModel:
     return dataclasses.replace(
         model, effort_limit_nm=np.asarray(g1.EFFORT_LIMIT_NM, dtype=float).copy()
     )
+
+
+@lru_cache(maxsize=1)
+def shin_box_corners() -> tuple[np.ndarray, ...]:
+    """The 8 corners (3,) of the left shin's collision box in the knee link frame [m]: the
+    primitive :func:`robots.collision_primitives.fit_link_primitives` fits around the URDF mesh
+    (the knee joint's frame in Pinocchio is that link's frame)."""
+    from robots.collision_primitives import fit_link_primitives
+
+    shin = next(p for p in fit_link_primitives() if p.body == "left_knee_link")
+    if shin.geom_type != mujoco.mjtGeom.mjGEOM_BOX:
+        raise RuntimeError(f"the left shin's primitive is not a box: {shin.geom_type}")
+    w, x, y, z = shin.quat
+    rot = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])  # fmt: skip
+    half = np.asarray(shin.size_m)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return tuple(np.asarray(shin.pos_m) + rot @ (sg * half) for sg in signs)
 
 
 @lru_cache(maxsize=1)
@@ -194,6 +219,10 @@ def build_sagittal_model() -> SagittalModel:
     clearance = ca.Function(
         "clearance_heights", [r], [ca.vertcat(hand_w[2], poss[2, knee])], ["r"], ["z_w"]
     )
+    corners = shin_box_corners()
+    rot_knee = rots[:, 3 * knee : 3 * knee + 3]
+    shin_z = ca.vertcat(*[(poss[:, knee] + rot_knee @ c)[2] for c in corners])
+    shin = ca.Function("shin_heights", [r], [shin_z], ["r"], ["z_w"])
     sole_vel = ca.Function(
         "sole_points_velocity", [r, rd], [ca.horzcat(*vel_pts)], ["r", "rd"], ["v_w"]
     )
@@ -214,6 +243,7 @@ def build_sagittal_model() -> SagittalModel:
         sole_points=sole_points,
         sole_points_velocity=sole_vel,
         clearance_heights=clearance,
+        shin_heights=shin,
         lower_r=lower,
         upper_r=upper,
         velocity_limit=vel,

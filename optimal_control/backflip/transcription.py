@@ -398,6 +398,9 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     add("pelvis height", r[1, :].T, cfg.min_pelvis_height_m, np.inf)
     parts = [model.clearance_heights(r[:, k]) for k in range(n)]
     add("hand and knee clearance", ca.vertcat(*parts), cfg.min_limb_height_m, np.inf)
+    if cfg.shin_clearance:
+        shins = [model.shin_heights(r[:, k]) for k in range(n)]
+        add("shin clearance", ca.vertcat(*shins), cfg.min_shin_height_m, np.inf)
     # centre of pressure away from the sole edges: each of heel and toe carries a share
     c = cfg.cop_margin
     total = fz[0, :] + fz[1, :]

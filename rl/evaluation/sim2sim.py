@@ -81,20 +81,52 @@ class Sim2SimConfig:
     joint_pos_noise_rad: float = 0.05  # uniform +- initial joint offset from the default pose [rad]
     seed: int = 1  # seed of the initial states and of the task's command and phase draws [-]
     randomize: bool = True  # the task's randomisation ranges and observation noise, own draws
+    # Each setting below can be set to the training physics' to find where a gap comes from
+    # (docs/results/backflip_track/sim2sim_gap.py); the defaults are the second simulator's.
+    cone: str = "elliptic"  # friction cone: "elliptic" or "pyramidal" (training's)
+    integrator: str = "euler"  # "euler" or "implicitfast" (training's)
+    link_meshes: bool = True  # the URDF's collision meshes; False: training's link primitives
+    links_off_floor: tuple[str, ...] = ()  # links whose collision geometry skips the floor
 
     def __post_init__(self) -> None:
         if self.num_envs < 1 or self.physics_dt_s <= 0:
             raise ValueError("sim2sim needs num_envs >= 1 and a positive physics step")
+        for name, options in (("cone", CONES), ("integrator", INTEGRATORS)):
+            if getattr(self, name) not in options:
+                raise ValueError(
+                    f"sim2sim {name} {getattr(self, name)!r} is not one of {sorted(options)}"
+                )
+
+
+CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
+INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
 
 
 def build_sim2sim_model(cfg: Sim2SimConfig) -> mujoco.MjModel:
-    """The G1 with its URDF collision meshes on the floor, no actuators (torques are explicit)."""
+    """The G1 with its URDF collision meshes on the floor (or, ``link_meshes`` off, the training
+    env's link primitives), no actuators (torques are explicit)."""
     spec = build_mujoco_spec(
         MujocoModelConfig(timestep_s=cfg.physics_dt_s, body_floor_collision=True, actuators=False)
     )
-    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    if not cfg.link_meshes:
+        from robots.collision_primitives import add_link_primitives, fit_link_primitives
+
+        for geom in [g for g in spec.geoms if g.type == mujoco.mjtGeom.mjGEOM_MESH]:
+            spec.delete(geom)
+        add_link_primitives(spec, fit_link_primitives())
+    for name in cfg.links_off_floor:
+        body = spec.body(name)
+        if body is None:
+            raise ValueError(f"sim2sim links_off_floor: '{name}' is not a link of the G1")
+        for geom in body.geoms:
+            if geom.contype == 2:  # a link's collision geometry (the soles are 1)
+                geom.contype = 0
+    spec.option.cone = CONES[cfg.cone]
     spec.option.impratio = cfg.impratio
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    spec.option.integrator = INTEGRATORS[cfg.integrator]
     return spec.compile()
 
 
