@@ -35,6 +35,12 @@ which survive mesh removal) of :mod:`robots.mujoco_model`. Terrain geoms must ke
 conaffinity to be hit by links. For self-collision set ``LinkCollisionConfig.conaffinity = 2``
 (MuJoCo filters parent-child pairs).
 
+Known flaw (measured Dec 6, ``docs/results/backflip_track``): the shin (knee link) box's lowest
+corner sits by the ankle, 1.6 cm above the floor standing where the mesh is 2.9 cm up; in a deep
+crouch with the shank tilted forward it dips up to 6 mm into the floor behind the heel, a support
+the mesh (and the robot) does not have. A flip policy trained on it pushes off that corner and
+loses it in sim2sim (URDF meshes). ``solve-backflip --shin-clearance`` keeps references off it.
+
 Mass: the URDF gives every body an explicit inertial (``inertiafromgeom`` auto uses it), and the
 primitives are added with density 0, so mass, CoM and inertia do not change.
 """
