@@ -134,16 +134,12 @@ def shin_box_corners() -> tuple[np.ndarray, ...]:
     primitive :func:`robots.collision_primitives.fit_link_primitives` fits around the URDF mesh
     (the knee joint's frame in Pinocchio is that link's frame)."""
     from robots.collision_primitives import fit_link_primitives
+    from robots.conventions import quat_wxyz_to_matrix
 
     shin = next(p for p in fit_link_primitives() if p.body == "left_knee_link")
     if shin.geom_type != mujoco.mjtGeom.mjGEOM_BOX:
         raise RuntimeError(f"the left shin's primitive is not a box: {shin.geom_type}")
-    w, x, y, z = shin.quat
-    rot = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])  # fmt: skip
+    rot = quat_wxyz_to_matrix(np.asarray(shin.quat, dtype=float))
     half = np.asarray(shin.size_m)
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     return tuple(np.asarray(shin.pos_m) + rot @ (sg * half) for sg in signs)

@@ -112,11 +112,13 @@ def build_sim2sim_model(cfg: Sim2SimConfig) -> mujoco.MjModel:
         MujocoModelConfig(timestep_s=cfg.physics_dt_s, body_floor_collision=True, actuators=False)
     )
     if not cfg.link_meshes:
-        from robots.collision_primitives import add_link_primitives, fit_link_primitives
+        from robots.collision_primitives import (
+            add_link_primitives,
+            fit_link_primitives,
+            remove_meshes,
+        )
 
-        for geom in [g for g in spec.geoms if g.type == mujoco.mjtGeom.mjGEOM_MESH]:
-            spec.delete(geom)
-        add_link_primitives(spec, fit_link_primitives())
+        add_link_primitives(remove_meshes(spec), fit_link_primitives())
     for name in cfg.links_off_floor:
         body = spec.body(name)
         if body is None:
