@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 WINDOWS_M = ((0.6, 1.6), (1.6, 2.6), (2.6, 4.0))  # env steps [M], evaluations with lo < x <= hi
+RUN_NAME = re.compile(r"walkflat_(baseline|a2cf_warm|a2cf_warm_ratio)_128_s\d+")  # the study's runs
 
 
 def evaluations(run: Path) -> list[tuple[float, float, float]]:
@@ -45,7 +46,11 @@ def window_means(rows: list[tuple[float, float, float]]) -> list[dict | None]:
 
 
 def main(parent: Path) -> dict:
-    runs = sorted(p for p in parent.glob("walkflat_*_128_s*") if (p / "evals.jsonl").is_file())
+    runs = sorted(
+        p
+        for p in parent.glob("walkflat_*_128_s*")
+        if RUN_NAME.fullmatch(p.name) and (p / "evals.jsonl").is_file()
+    )
     table = {p.name: window_means(evaluations(p)) for p in runs}
     pairs = []
     for name in table:
