@@ -18,40 +18,58 @@ from __future__ import annotations
 import json
 import shutil
 import sys
+import tempfile
 from pathlib import Path
+
+from optimal_control.files import atomic_write_json
 
 RECORDS = ("metrics.jsonl", "evals.jsonl", "curriculum.jsonl")  # rows with an "iteration" field
 COPIED = ("git.json", "warmstart.json")
 
 
 def branch(run: Path, k: int, name: str, overrides: dict) -> Path:
+    from rl.runs.folder import load_run_config
+    from rl.tasks.registry import resolve_task
+
+    if not (run / "config.json").is_file():
+        raise SystemExit(
+            f"{run} is not a run folder (no config.json); give a training run's folder"
+        )
     checkpoint = run / "checkpoints" / f"model_{k}.pt"
     if not checkpoint.is_file():
-        kept = sorted(p.name for p in (run / "checkpoints").glob("model_*.pt"))
-        raise SystemExit(f"{checkpoint} does not exist; kept checkpoints: {', '.join(kept)}")
+        kept = sorted(int(p.stem[6:]) for p in (run / "checkpoints").glob("model_*.pt")
+                      if p.stem[6:].isdigit())  # fmt: skip
+        raise SystemExit(f"{checkpoint} does not exist; kept checkpoints K: {kept}")
     new = run.parent / name
     if new.exists():
         raise SystemExit(f"{new} exists already; pick another NEW_RUN_NAME or remove it")
-    (new / "checkpoints").mkdir(parents=True)
-    shutil.copy2(checkpoint, new / "checkpoints" / checkpoint.name)
-    shutil.copy2(checkpoint, new / "checkpoints" / "last.pt")
-    for f in COPIED:
-        if (run / f).is_file():
-            shutil.copy2(run / f, new / f)
-    if (run / "git").is_dir():
-        shutil.copytree(run / "git", new / "git")
-    for f in RECORDS:
-        if (run / f).is_file():
-            # metrics rows count iterations from 0 (row k-1 is the k-th); evaluations are named
-            # by completed iterations (the one at k is model_k's)
-            last = k - 1 if f == "metrics.jsonl" else k
-            rows = [r for r in (run / f).read_text().splitlines(keepends=True)
-                    if r.strip() and json.loads(r).get("iteration", -1) <= last]  # fmt: skip
-            (new / f).write_text("".join(rows))
-    config = json.loads((run / "config.json").read_text())
-    config["train"].setdefault("task_overrides", {}).update(overrides)
-    config["train"]["run_name"] = name
-    (new / "config.json").write_text(json.dumps(config, indent=1))
+    with tempfile.TemporaryDirectory(prefix=f".{name}.", dir=run.parent) as tmp:
+        part = Path(tmp) / name
+        (part / "checkpoints").mkdir(parents=True)
+        shutil.copy2(checkpoint, part / "checkpoints" / checkpoint.name)
+        shutil.copy2(checkpoint, part / "checkpoints" / "last.pt")
+        for f in COPIED:
+            if (run / f).is_file():
+                shutil.copy2(run / f, part / f)
+        if (run / "git").is_dir():
+            shutil.copytree(run / "git", part / "git")
+        for f in RECORDS:
+            if (run / f).is_file():
+                # metrics rows count iterations from 0 (row k-1 is the k-th); evaluations are
+                # named by completed iterations (the one at k is model_k's)
+                last = k - 1 if f == "metrics.jsonl" else k
+                rows = [r for r in (run / f).read_text().splitlines(keepends=True)
+                        if r.strip() and json.loads(r).get("iteration", -1) <= last]  # fmt: skip
+                (part / f).write_text("".join(rows))
+        config = json.loads((run / "config.json").read_text())
+        config["train"].setdefault("task_overrides", {}).update(overrides)
+        config["train"]["run_name"] = name
+        atomic_write_json(part / "config.json", config, indent=1)
+        try:
+            resolve_task(load_run_config(part))  # an unknown field or a bad value: one line
+        except (KeyError, TypeError, ValueError) as err:
+            raise SystemExit(f"the overrides {overrides} do not fit the task: {err}") from err
+        part.rename(new)
     return new
 
 
@@ -59,6 +77,13 @@ if __name__ == "__main__":
     if len(sys.argv) < 4 or not all("=" in a for a in sys.argv[4:]):
         sys.exit(__doc__)
     fields = dict(a.split("=", 1) for a in sys.argv[4:])
-    new = branch(Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3],
-                 {f: json.loads(v) for f, v in fields.items()})  # fmt: skip
+    if not sys.argv[2].isdigit():
+        sys.exit(f"K must be a checkpoint's iteration (model_K.pt), got '{sys.argv[2]}'")
+    try:
+        values = {f: json.loads(v) for f, v in fields.items()}
+    except json.JSONDecodeError as err:
+        sys.exit(
+            f"an override value is not JSON ({err}); write e.g. FIELD=0.5 or 'FIELD={{\"a\": 1}}'"
+        )
+    new = branch(Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], values)
     print(f"a2cf-mb train --resume {new} --iterations 9766")

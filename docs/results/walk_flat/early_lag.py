@@ -70,4 +70,7 @@ def main(parent: Path) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) != 2:
         sys.exit(__doc__)
+    if not any(RUN_NAME.fullmatch(p.name) for p in Path(sys.argv[1]).glob("walkflat_*")):
+        sys.exit(f"{sys.argv[1]} holds no walkflat_<baseline|a2cf_warm>_128_s<seed> run; give "
+                 "the runs' parent folder, e.g. runs/walk_flat")  # fmt: skip
     print(json.dumps(main(Path(sys.argv[1])), indent=1))
