@@ -132,6 +132,13 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
         ),
         ("a2cf", None, ALONE_ENVS, PPOConfig(), "a2cf skill:alone@0.6"),
         ("a2cf", None, CurriculumConfig(), PPOConfig(kl_actions="all"), "a2cf kl:all"),
+        (
+            "a2cf",
+            None,
+            CurriculumConfig(),
+            PPOConfig(assist_in_ratio="always"),
+            "a2cf ratio:always",
+        ),
         # stand's update is 2 PPO + 1 encoder pass; 5 + 0 (PPO's passes) differs
         (
             "baseline",
@@ -151,6 +158,34 @@ def test_a_study_names_each_variant_by_what_differs(tmp_path, mode, warm, curric
     if ppo.num_learning_epochs:
         cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, vae_learning_epochs=0))
     assert run_variant(with_task_defaults(cfg, resolve_task(cfg))) == name
+
+
+def test_a_study_names_task_changes_and_where_a_branch_made_them(tmp_path) -> None:
+    """Runs on different recipes (``--task-*`` changes, a branch's late changes) are different
+    variants, and each is compared with the baseline of its own recipe."""
+    from rl.studies.learning import BRANCH_FILE, run_variant
+    from rl.tasks.registry import resolve_task
+    from rl.training.config import with_task_defaults
+
+    changes = {"pushes.train_backward_share": 0.5, "reward_weights": {"alive": 2.0}}
+    cfg = tiny_config(tmp_path, "baseline", ppo=PPOConfig(), task_overrides=changes)
+    cfg = with_task_defaults(cfg, resolve_task(cfg))
+    both = "baseline task:pushes.train_backward_share=0.5,reward_weights.alive=2"
+    assert run_variant(cfg) == both
+    late = {"run": "parent", "iteration": 800, "overrides": {"reward_weights": {"alive": 2.0}}}
+    assert run_variant(cfg, late) == both + "@800"
+
+    plain = train(tiny_config(tmp_path, "baseline", run_name="plain"), verbose=False)
+    changed = train(
+        tiny_config(tmp_path, "baseline", run_name="changed", task_overrides=changes),
+        verbose=False,
+    )
+    (changed.run_dir / BRANCH_FILE).write_text(json.dumps(late))
+    study = summarise_study([plain.run_dir, changed.run_dir], tmp_path / "study")
+    groups = [g["group"] for g in study["groups"]]
+    tiny = "stand baseline update:1+1"  # the tiny PPO's update
+    assert groups == [tiny, tiny + both.removeprefix("baseline") + "@800"]
+    assert study["runs"][1]["branched_from"] == late and study["runs"][0]["branched_from"] is None
 
 
 def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_path) -> None:

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Copy the run folders under SRC into DST as study records: each run's config.json, git.json,
-# evals*.jsonl, warmstart.json, policy.json, metrics.json and curriculum.jsonl (gzipped), and each
-# oracle artifact's oracle.json (its reference and arrays stay out: a clip may not be ours).
+# branch.json, evals*.jsonl, warmstart.json, policy.json, metrics.json and curriculum.jsonl
+# (gzipped), and each oracle artifact's oracle.json (its reference and arrays stay out: a clip may
+# not be ours).
 # No TensorBoard events, and no checkpoints unless KEEP_LAST=1: then each run's last checkpoint
 # (checkpoints/last.pt, ~4 MB) and its live logs (metrics.jsonl, curriculum.jsonl) come too, so a
 # later session on a fresh machine continues the run exactly: restore_runs.sh DST runs/<study>, then
@@ -13,7 +14,7 @@ for run in "$SRC"/*/; do
   name=$(basename "$run")
   [ -f "$run/config.json" ] || continue
   mkdir -p "$DST/$name"
-  for f in config.json git.json evals.jsonl evals_checkpoints.jsonl warmstart.json policy.json; do
+  for f in config.json git.json branch.json evals.jsonl evals_checkpoints.jsonl warmstart.json policy.json; do
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
   [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"

@@ -20,7 +20,7 @@ for rec in "$SRC"/*/; do
   rm -rf "$tmp"
   mkdir -p "$tmp/checkpoints"
   cp "$rec/checkpoints/last.pt" "$tmp/checkpoints/"
-  for f in config.json git.json evals.jsonl evals_checkpoints.jsonl warmstart.json; do
+  for f in config.json git.json branch.json evals.jsonl evals_checkpoints.jsonl warmstart.json; do
     if [ -f "$rec/$f" ]; then cp "$rec/$f" "$tmp/"; fi
   done
   for f in curriculum.jsonl metrics.jsonl; do

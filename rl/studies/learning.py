@@ -110,7 +110,8 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
         "run": run_dir.name,
         "task": cfg.task,
         "mode": cfg.mode,
-        "variant": run_variant(cfg),
+        "variant": run_variant(cfg, branch_of(run_dir)),
+        "branched_from": branch_of(run_dir),
         "seed": cfg.seed,
         "num_envs": cfg.env.num_envs,
         "target": task.target.describe(),
@@ -130,13 +131,27 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
     }
 
 
-def run_variant(cfg: Any) -> str:
+BRANCH_FILE = "branch.json"
+"""Written into a run folder branched from another run's checkpoint (the study's ``branch.py``):
+``{"run": parent run name, "iteration": K, "overrides": {field: value}}``."""
+
+
+def branch_of(run_dir: str | Path) -> dict[str, Any] | None:
+    """The run's :data:`BRANCH_FILE` (where it was branched from), or None for a run trained from
+    scratch."""
+    path = Path(run_dir) / BRANCH_FILE
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def run_variant(cfg: Any, branched_from: dict[str, Any] | None = None) -> str:
     """The name a study groups a run under: its mode, ``+warm`` when its force agent was
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
     skill trigger (``skill:<measure>@<progress>``), its fixed schedule (``anneal:<iterations>``,
-    ``anneal:off``) and whose KL sets the learning rate (``kl:all``) where they differ from today's
-    defaults; last, for any mode, its update (``update:<PPO passes>+<encoder passes>``) where it
-    differs from its task's today."""
+    ``anneal:off``), whose KL sets the learning rate (``kl:all``) and whether the assist actions
+    stay in PPO's ratio after the help (``ratio:always``) where they differ from today's defaults;
+    for any mode, its update (``update:<PPO passes>+<encoder passes>``) where it differs from its
+    task's today; last, its task changes (``task:<field>=<value>,...``; ``@K`` after a change made
+    where the run was branched from another at iteration K)."""
     name = cfg.mode
     if cfg.warmstart:
         name += "+warm"
@@ -144,13 +159,39 @@ def run_variant(cfg: Any) -> str:
         name += _curriculum_variant(cfg.curriculum)
         if cfg.ppo.kl_actions != PPOConfig().kl_actions:
             name += f" kl:{cfg.ppo.kl_actions}"
+        if cfg.ppo.assist_in_ratio != PPOConfig().assist_in_ratio:
+            name += f" ratio:{cfg.ppo.assist_in_ratio}"
     task = resolve_task(cfg)
     ppo_passes = cfg.ppo.num_learning_epochs or task.learning_epochs
     encoder_passes = cfg.model.vae_learning_epochs or ppo_passes  # 0: PPO's passes
     default = (task.learning_epochs, task.vae_learning_epochs or task.learning_epochs)
     if (ppo_passes, encoder_passes) != default:
         name += f" update:{ppo_passes}+{encoder_passes}"
+    if cfg.task_overrides:
+        late = dict(_flat(branched_from["overrides"])) if branched_from else {}
+        name += " task:" + ",".join(
+            f"{field}={_compact(value)}" + (f"@{branched_from['iteration']}" if field in late else "")
+            for field, value in _flat(cfg.task_overrides)
+        )  # fmt: skip
     return name
+
+
+def _flat(overrides: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
+    """``{"a": {"b": 1}, "c.d": 2}`` -> ``[("a.b", 1), ("c.d", 2)]`` (dotted fields, sorted)."""
+    items: list[tuple[str, Any]] = []
+    for key, value in overrides.items():
+        if isinstance(value, dict) and value:
+            items += _flat(value, f"{prefix}{key}.")
+        else:
+            items.append((f"{prefix}{key}", value))
+    return sorted(items)
+
+
+def _compact(value: Any) -> str:
+    """A value as short text (no spaces: a group name is split on them)."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    return json.dumps(value, separators=(",", ":")).replace(" ", "_")
 
 
 def _curriculum_variant(cur: Any) -> str:
@@ -210,10 +251,12 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
     return result
 
 
-def _reference(group: str) -> tuple[str, str]:
-    """A group's task and update label (``update:...``, empty for the task's own update)."""
+def _reference(group: str) -> tuple[str, str, str]:
+    """A group's task, update label (``update:...``, empty for the task's own update) and task
+    changes (``task:...``): a run's baseline is the one on the same recipe."""
     words = group.split()
-    return words[0], next((w for w in words if w.startswith("update:")), "")
+    labels = [next((w for w in words if w.startswith(p)), "") for p in ("update:", "task:")]
+    return words[0], labels[0], labels[1]
 
 
 def _plot(run_dirs: list[Path], runs: list[dict[str, Any]], path: Path) -> None:

@@ -9,8 +9,9 @@ same envs, same env steps.
 FIELD is a task field as the ``--task-*`` flags name it, dotted (``pushes.train_backward_share``);
 VALUE is read as JSON (``0.5``, ``true``, ``[5, 10]``). The new folder gets the run's config with
 the overrides added, its provenance (``git.json``, ``git/``), its records up to iteration K and
-``model_K.pt`` (also as ``last.pt``, which the resume continues from). The original run is not
-touched.
+``model_K.pt`` (also as ``last.pt``, which the resume continues from) and ``branch.json`` (the
+parent run, K and the overrides; a study names the run's variant by them). The original run is
+not touched.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ COPIED = ("git.json", "warmstart.json")
 
 def branch(run: Path, k: int, name: str, overrides: dict) -> Path:
     from rl.runs.folder import load_run_config
+    from rl.studies.learning import BRANCH_FILE
     from rl.tasks.registry import resolve_task
 
     if not (run / "config.json").is_file():
@@ -65,6 +67,8 @@ def branch(run: Path, k: int, name: str, overrides: dict) -> Path:
         config["train"].setdefault("task_overrides", {}).update(overrides)
         config["train"]["run_name"] = name
         atomic_write_json(part / "config.json", config, indent=1)
+        provenance = {"run": run.name, "iteration": k, "overrides": overrides}
+        atomic_write_json(part / BRANCH_FILE, provenance)
         try:
             resolve_task(load_run_config(part))  # an unknown field or a bad value: one line
         except (KeyError, TypeError, ValueError) as err:
