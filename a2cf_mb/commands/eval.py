@@ -29,12 +29,18 @@ def run(args: argparse.Namespace) -> int:
     print(json.dumps(result, indent=2))
     if "sim2sim" in result:
         other = result["sim2sim"]
-        print(f"{'metric':<28} {'training physics':>17} {'sim2sim':>10}")
+        print(f"{'metric':<34} {'training physics':>17} {'sim2sim':>10}")
         for key in ("survival_fraction", "mean_return", "mean_episode_length_steps"):
-            print(f"{key:<28} {result[key]:>17.3f} {other[key]:>10.3f}")
+            print(f"{key:<34} {result[key]:>17.3f} {other[key]:>10.3f}")
         ours, theirs = result.get("task_metrics", {}), other.get("task_metrics", {})
         for key, value in ours.items():  # the task's judge, where sim2sim scored with it too
             scalar = isinstance(value, float) and isinstance(theirs.get(key), float)
             if scalar and not key.startswith("statue_"):
-                print(f"{key:<28} {value:>17.3f} {theirs[key]:>10.3f}")
+                print(f"{key:<34} {value:>17.3f} {theirs[key]:>10.3f}")
+        other_rows = {r["command"]: r for r in theirs.get("per_command", [])}
+        for row in ours.get("per_command", []):  # walk: the errors per command (or segment)
+            for key in ("lin_vel_error_mps", "yaw_rate_error_rps"):
+                if row["command"] in other_rows:
+                    name = f"{row['command']}: {key}"
+                    print(f"{name:<34} {row[key]:>17.3f} {other_rows[row['command']][key]:>10.3f}")
     return 0

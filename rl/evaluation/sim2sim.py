@@ -37,8 +37,9 @@ The task's own termination and reward terms score the rollouts (same metrics as 
 :class:`EnvState` of the sim2sim robots (feet, link-ground contacts, joint accelerations, foot
 timers, episode time, command, phase; no wrench), and the task's pushes are applied as in training
 (same interval and size, own generator), so the two columns compare like with like. Where the
-task's evaluation reads no more than the sim2sim robots have (``in_sim2sim``: the tracking and
-flip judges), it scores the rollouts too (``task_metrics``: flips landed, turn, tracking errors).
+task's evaluation reads no more than the sim2sim robots have (``in_sim2sim``: the tracking, walk and
+flip judges), it scores the rollouts too (``task_metrics``: flips landed, turn, tracking errors,
+velocity errors per command).
 """
 
 from __future__ import annotations
@@ -234,13 +235,19 @@ class TaskLogic:
 class _EvaluatedEnv:
     """What a task's evaluator reads of the training env (:class:`G1VecEnv`'s names), for the
     sim2sim robots: their latest :class:`EnvState` and the task's logic. Used for evaluations
-    that say they need no more (``in_sim2sim``: the tracking and flip judges)."""
+    that say they need no more (``in_sim2sim``: the tracking, flip and walk judges)."""
+
+    device = "cpu"
+    skill = None  # no skill measure here (walk's terrain levels): the scene is the plane
 
     def __init__(self, task: TaskConfig, logic: TaskLogic, state: EnvState) -> None:
         self.task, self.logic, self.env_state = task, logic, state
         self.num_envs, self.step_dt_s = state.joint_pos_rad.shape[0], state.step_dt_s
         self.command_gen = logic.command_gen
         self.task_components = self  # the env's parts: the command's targets below
+
+    def reset_envs(self, env_ids: torch.Tensor) -> None:
+        """Nothing to do: each robot's one episode starts from its initial state already."""
 
     phase = property(lambda self: self.logic.phase, doc="(N,) phase of the next step.")
     targets = property(lambda self: self.logic.command_gen.targets(), doc="The next targets.")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -52,6 +52,9 @@ class WalkEvaluationConfig:
     """Which terrain levels the walk evaluation places robots on, and an optional scripted
     command sequence in place of the env's random draws."""
 
+    in_sim2sim: ClassVar[bool] = True
+    """Its evaluator reads only what the sim2sim robots have (:mod:`rl.evaluation.sim2sim` scores
+    their rollouts with it too, all on flat ground: one "flat" row at level 0)."""
     levels: tuple[int, ...] = (0, 3, 6, 9)
     """terrain levels to test, cycled over env blocks [-]"""
     command_script: tuple[CommandSegment, ...] = ()
