@@ -80,6 +80,23 @@ def test_checkpoint_evaluations_equal_the_ones_during_training(tmp_path) -> None
     assert (tmp_path / "study" / "study.png").stat().st_size > 0
 
 
+def test_eval_curve_of_chosen_checkpoints_keeps_the_other_rows(tmp_path) -> None:
+    """``iterations`` evaluates only those checkpoints; rows of other envs or seeds stay in the
+    file; a checkpoint that is not kept is one line naming the kept ones."""
+    from rl.runs.folder import CHECKPOINT_EVALS_LOG
+
+    run = train(tiny_config(tmp_path, "baseline"), verbose=False)
+    first = evaluate_checkpoints(run.run_dir, EVAL, progress=False, iterations=(2,))
+    assert [r["iteration"] for r in first] == [2]
+    other = dataclasses.replace(EVAL, num_envs=2)
+    rows = evaluate_checkpoints(run.run_dir, other, progress=False)
+    assert [(r["iteration"], r["num_envs"]) for r in rows] == [(1, 2), (2, 2)]
+    kept = read_jsonl(run.run_dir / CHECKPOINT_EVALS_LOG)
+    assert sorted((r["iteration"], r["num_envs"]) for r in kept) == [(1, 2), (2, 2), (2, 3)]
+    with pytest.raises(ValueError, match=r"no checkpoint of iteration \[7\]; kept: \[1, 2\]"):
+        evaluate_checkpoints(run.run_dir, EVAL, progress=False, iterations=(7,))
+
+
 @pytest.mark.parametrize(
     ("target", "survival", "metrics", "reached"),
     [

@@ -24,6 +24,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=1,
         help="evaluate only checkpoints whose iteration is a multiple of this (default: 1, all)",
     )
+    parser.add_argument(
+        "--iterations",
+        type=int,
+        nargs="+",
+        default=(),
+        metavar="K",
+        help="evaluate only these kept checkpoints model_K.pt (default: all)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -39,7 +47,11 @@ def run(args: argparse.Namespace) -> int:
         args.run_dir,
         config_from_args(AloneEvalConfig, args),
         every_iterations=args.every_iterations,
+        iterations=tuple(args.iterations),
     )
+    if not rows:
+        print(f"no checkpoint of {args.run_dir} evaluated with these envs and seed")
+        return 0
     first = next((r for r in rows if r["target_reached"]), None)
     where = (
         f"reached at iteration {first['iteration']} ({first['env_steps']:,} env steps)"

@@ -356,12 +356,15 @@ def evaluate_checkpoints(
     cfg: AloneEvalConfig = AloneEvalConfig(),
     progress: bool = True,
     every_iterations: int = 1,
+    iterations: tuple[int, ...] = (),
 ) -> list[dict[str, Any]]:
     """Evaluate the motion policy alone at every kept checkpoint ``model_<k>.pt`` of a run, as the
-    evaluations during training do (same envs, seed and scores), and write the rows to
-    ``evals_checkpoints.jsonl`` (checkpoints already in it are not evaluated again). For runs
-    trained without evaluations, or to evaluate more envs. ``every_iterations``: only checkpoints
-    whose iteration is a multiple of it."""
+    evaluations during training do (same envs, seed and scores), and add the rows to
+    ``evals_checkpoints.jsonl`` (checkpoints already in it with the same envs and seed are not
+    evaluated again; rows of other envs or seeds stay). For runs trained without evaluations, or
+    to evaluate more envs. ``every_iterations``: only checkpoints whose iteration is a multiple of
+    it; ``iterations``: only these checkpoints (each must be kept). Returns the rows of these
+    envs and seed."""
     from optimal_control.files import atomic_write_text
 
     run_dir = Path(run_dir)
@@ -369,9 +372,12 @@ def evaluate_checkpoints(
     task = resolve_task(train_cfg)
     path = run_dir / CHECKPOINT_EVALS_LOG
     advice = "delete it to evaluate every checkpoint again, or restore it from a backup"
-    rows = read_run_jsonl(path, "eval-curve's rows", advice) if path.is_file() else []
-    rows = [r for r in rows if r.get("num_envs") == cfg.num_envs and r.get("seed") == cfg.seed]
-    done = {r["iteration"] for r in rows}
+    every = read_run_jsonl(path, "eval-curve's rows", advice) if path.is_file() else []
+
+    def ours(row: dict[str, Any]) -> bool:
+        return row.get("num_envs") == cfg.num_envs and row.get("seed") == cfg.seed
+
+    done = {r["iteration"] for r in every if ours(r)}
     checkpoints = sorted(
         (int(p.stem.split("_")[1]), p)
         for p in (run_dir / CHECKPOINT_DIR).glob("model_*.pt")
@@ -379,9 +385,19 @@ def evaluate_checkpoints(
     )
     if not checkpoints:
         raise ValueError(f"{run_dir} has no kept checkpoint (checkpoints/model_<k>.pt) to evaluate")
+    missing = sorted(set(iterations) - {k for k, _ in checkpoints})
+    if missing:
+        raise ValueError(
+            f"{run_dir} keeps no checkpoint of iteration {missing}; kept: "
+            f"{[k for k, _ in checkpoints]}"
+        )
     steps_per_iteration = train_cfg.env.num_envs * train_cfg.num_steps_per_env
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
-    todo = [(k, p) for k, p in checkpoints if k not in done and k % every_iterations == 0]
+    todo = [
+        (k, p)
+        for k, p in checkpoints
+        if k not in done and k % every_iterations == 0 and (not iterations or k in iterations)
+    ]
     for _, ckpt in todo:  # a damaged checkpoint is one line before any rollout
         load_checkpoint(ckpt, advice="restore it from a backup, or delete it (eval-curve skips it)")
     for i, (k, ckpt) in enumerate(todo):
@@ -395,15 +411,15 @@ def evaluate_checkpoints(
             )
         finally:
             env.close()
-        rows.append(
+        every.append(
             {"iteration": k, "env_steps": k * steps_per_iteration, "seed": cfg.seed, **result}
         )
-        rows.sort(key=lambda r: r["iteration"])
-        atomic_write_text(path, "".join(json.dumps(r) + "\n" for r in rows))
+        every.sort(key=lambda r: r["iteration"])  # stable: rows of one iteration keep their order
+        atomic_write_text(path, "".join(json.dumps(r) + "\n" for r in every))
         if progress:
             print(
                 f"[{i + 1}/{len(todo)}] {run_dir.name} iteration {k}: survival "
                 f"{result['survival_fraction']:.0%}, target reached: {result['target_reached']}",
                 flush=True,
             )
-    return rows
+    return [r for r in every if ours(r)]

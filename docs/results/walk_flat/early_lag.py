@@ -5,8 +5,11 @@ seed, and the difference per seed. The help of the default curriculum ends at it
 
     python docs/results/walk_flat/early_lag.py RUN_PARENT > early_lag.json
 
-RUN_PARENT holds ``walkflat_baseline_128_s<seed>`` and ``walkflat_a2cf_warm_128_s<seed>`` (and the
-seed-0 ``walkflat_a2cf_warm_ratio_128_s0``); a pair counts where both runs reach the window's end.
+RUN_PARENT holds ``walkflat_baseline_128_s<seed>`` and ``walkflat_a2cf_warm_128_s<seed>``, and the
+controls: ``walkflat_a2cf_warm_ratio_128_s0`` (the ratio fix), ``walkflat_a2cf_warm_anneal1_128_s2``
+(help for one iteration only: everything A2CF brings but the help), ``walkflat_a2cf_anneal1_128_s2``
+(the same without the warm start) and ``walkflat_no-pi_warm_128_s0`` (the paper's ablation); a pair
+counts where both runs reach the window's end.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ import sys
 from pathlib import Path
 
 WINDOWS_M = ((0.6, 1.6), (1.6, 2.6), (2.6, 4.0))  # env steps [M], evaluations with lo < x <= hi
-RUN_NAME = re.compile(r"walkflat_(baseline|a2cf_warm|a2cf_warm_ratio)_128_s\d+")  # the study's runs
+VARIANTS = ("a2cf_warm", "a2cf_warm_ratio", "a2cf_warm_anneal1", "a2cf_anneal1", "no-pi_warm")
+RUN_NAME = re.compile(rf"walkflat_(baseline|{'|'.join(VARIANTS)})_128_s\d+")  # the study's runs
 
 
 def evaluations(run: Path) -> list[tuple[float, float, float]]:
@@ -54,7 +58,7 @@ def main(parent: Path) -> dict:
     table = {p.name: window_means(evaluations(p)) for p in runs}
     pairs = []
     for name in table:
-        m = re.fullmatch(r"walkflat_a2cf_warm(_ratio)?_128_s(\d+)", name)
+        m = re.fullmatch(rf"walkflat_({'|'.join(VARIANTS)})_128_s(\d+)", name)
         base = f"walkflat_baseline_128_s{m.group(2)}" if m else None
         if base not in table:
             continue
