@@ -209,7 +209,7 @@ def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_pa
     """One evaluation reaching the target is a noisy draw: the study's judge takes the first of
     two consecutive evaluations that reached it, and that checkpoint's >= 128-env confirmations."""
     from rl.runs.folder import CHECKPOINT_EVALS_LOG
-    from rl.studies.learning import confirmations_at, target_held
+    from rl.studies.learning import confirmations_at, confirmed_pair, target_held
 
     def row(it: int, reached: bool, envs: int = 32) -> dict:
         return {"iteration": it, "env_steps": it * 10, "num_envs": envs, "target_reached": reached}
@@ -222,6 +222,14 @@ def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_pa
     (confirmation,) = confirmations_at(tmp_path, 3)
     assert confirmation["num_envs"] == 128 and not confirmation["target_reached"]
     assert confirmations_at(tmp_path, 4) == []
+
+    # the stricter reading: both checkpoints of a pair confirmed; a failed one passes the pair
+    # over, an unconfirmed one leaves the answer unknown (None)
+    rows = [row(k, k != 5) for k in range(3, 9)]  # held at 3-4, 6-7, 7-8
+    assert confirmed_pair(tmp_path, rows) is None  # 3 failed on 128 envs, 4 unconfirmed
+    confirm = [row(3, False, 128), row(4, True, 128), row(6, True, 128), row(7, True, 128)]
+    log.write_text("\n".join(json.dumps(r) for r in confirm) + "\n")
+    assert confirmed_pair(tmp_path, rows)["iteration"] == 6
 
 
 def test_a_live_runs_metric_rows_are_read_from_its_jsonl_or_the_records_gzip(tmp_path) -> None:

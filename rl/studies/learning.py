@@ -12,6 +12,7 @@ from __future__ import annotations
 import gzip
 import json
 from collections import defaultdict
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +82,23 @@ def target_held(rows: list[dict[str, Any]], times: int = 2) -> dict[str, Any] | 
     return None
 
 
+def confirmed_pair(run_dir: Path, rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The first evaluation row of two consecutive ones that reached the target where both
+    checkpoints were confirmed on >= 128 fresh envs and every confirmation reached it too (a
+    pair with a failed confirmation is passed over; the scan stops at the first pair held twice
+    that has not been confirmed yet, since what it would give is unknown)."""
+    for first, second in pairwise(rows):
+        if not (first["target_reached"] and second["target_reached"]):
+            continue
+        checks = [confirmations_at(run_dir, r["iteration"]) for r in (first, second)]
+        if not all(c["target_reached"] for check in checks for c in check):
+            continue  # a checkpoint of this pair failed on the larger envs
+        if not all(checks):
+            return None
+        return first
+    return None
+
+
 def confirmations_at(
     run_dir: Path, iteration: int, min_envs: int = CONFIRM_MIN_ENVS
 ) -> list[dict[str, Any]]:
@@ -96,7 +114,8 @@ def confirmations_at(
 def run_summary(run_dir: str | Path) -> dict[str, Any]:
     """One run: task, mode, seed, its evaluations and where its target first held at two
     consecutive evaluations (``reached_at_*``), with that checkpoint's confirmations on
-    >= 128 fresh envs (``confirmed``: there are some and each reached the target)."""
+    >= 128 fresh envs (``confirmed``: there are some and each reached the target), and the first
+    such pair whose two checkpoints are both confirmed (``confirmed_pair_at_*``)."""
     run_dir = Path(run_dir)
     cfg = load_run_config(run_dir)
     task = resolve_task(cfg)
@@ -104,6 +123,7 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
     first = target_held(rows)
     once = next((r for r in rows if r["target_reached"]), None)
     confirmations = confirmations_at(run_dir, first["iteration"]) if first else []
+    pair = confirmed_pair(run_dir, rows)
     metric = task.target.metric
     last = rows[-1] if rows else None
     return {
@@ -123,6 +143,9 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
         "reached_at_iteration": first["iteration"] if first else None,
         "reached_at_wall_s": _wall_s_at(run_dir, first["iteration"]) if first else None,
         "first_reached_once_at_env_steps": once["env_steps"] if once else None,
+        # the stricter reading: both checkpoints of the pair confirmed on >= 128 envs
+        "confirmed_pair_at_env_steps": pair["env_steps"] if pair else None,
+        "confirmed_pair_at_iteration": pair["iteration"] if pair else None,
         "confirmations": confirmations,
         "confirmed": bool(confirmations) and all(c["target_reached"] for c in confirmations),
         "last_survival": last["survival_fraction"] if last else None,
@@ -232,6 +255,7 @@ def summarise_study(run_dirs: list[str | Path], out: str | Path) -> dict[str, An
                 "env_steps_to_target_mean": float(np.mean(reached)) if reached else None,
                 "env_steps_to_target_std": float(np.std(reached)) if reached else None,
                 "env_steps_to_target": [m["reached_at_env_steps"] for m in members],
+                "env_steps_to_confirmed_pair": [m["confirmed_pair_at_env_steps"] for m in members],
                 "evaluated_env_steps": [m["evaluated_env_steps"] for m in members],
                 "last_survival": [m["last_survival"] for m in members],
                 "last_metric": [m["last_metric"] for m in members],
