@@ -204,6 +204,19 @@ def test_a_study_names_task_changes_and_where_a_branch_made_them(tmp_path) -> No
     assert groups == [tiny, tiny + both.removeprefix("baseline") + "@800"]
     assert study["runs"][1]["branched_from"] == late and study["runs"][0]["branched_from"] is None
 
+    # a branch's target counts from its own evaluations on (before the branch it is its parent)
+    from rl.studies.learning import run_summary
+
+    rows = [
+        {"iteration": k, "env_steps": 32 * k, "target_reached": True, "survival_fraction": 1.0}
+        for k in (1, 2, 3)
+    ]
+    (changed.run_dir / EVALS_LOG).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    (changed.run_dir / BRANCH_FILE).write_text(json.dumps({**late, "iteration": 2}))
+    assert run_summary(changed.run_dir)["reached_at_iteration"] is None  # only 3 is its own
+    (changed.run_dir / BRANCH_FILE).write_text(json.dumps({**late, "iteration": 1}))
+    assert run_summary(changed.run_dir)["reached_at_iteration"] == 2
+
 
 def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_path) -> None:
     """One evaluation reaching the target is a noisy draw: the study's judge takes the first of

@@ -120,18 +120,21 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
     cfg = load_run_config(run_dir)
     task = resolve_task(cfg)
     rows = read_evals(run_dir)
-    first = target_held(rows)
-    once = next((r for r in rows if r["target_reached"]), None)
+    branch = branch_of(run_dir)
+    # a branch's own evaluations start after its branch point: before it the run is its parent
+    own = [r for r in rows if r["iteration"] > branch["iteration"]] if branch else rows
+    first = target_held(own)
+    once = next((r for r in own if r["target_reached"]), None)
     confirmations = confirmations_at(run_dir, first["iteration"]) if first else []
-    pair = confirmed_pair(run_dir, rows)
+    pair = confirmed_pair(run_dir, own)
     metric = task.target.metric
     last = rows[-1] if rows else None
     return {
         "run": run_dir.name,
         "task": cfg.task,
         "mode": cfg.mode,
-        "variant": run_variant(cfg, branch_of(run_dir)),
-        "branched_from": branch_of(run_dir),
+        "variant": run_variant(cfg, branch),
+        "branched_from": branch,
         "seed": cfg.seed,
         "num_envs": cfg.env.num_envs,
         "target": task.target.describe(),
