@@ -216,6 +216,9 @@ def test_a_study_names_task_changes_and_where_a_branch_made_them(tmp_path) -> No
     assert run_summary(changed.run_dir)["reached_at_iteration"] is None  # only 3 is its own
     (changed.run_dir / BRANCH_FILE).write_text(json.dumps({**late, "iteration": 1}))
     assert run_summary(changed.run_dir)["reached_at_iteration"] == 2
+    (changed.run_dir / BRANCH_FILE).write_text('{"run": "parent"')  # cut off mid-write
+    with pytest.raises(ValueError, match="branch.json is damaged"):
+        run_summary(changed.run_dir)
 
 
 def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_path) -> None:

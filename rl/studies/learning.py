@@ -166,7 +166,17 @@ def branch_of(run_dir: str | Path) -> dict[str, Any] | None:
     """The run's :data:`BRANCH_FILE` (where it was branched from), or None for a run trained from
     scratch."""
     path = Path(run_dir) / BRANCH_FILE
-    return json.loads(path.read_text()) if path.is_file() else None
+    if not path.is_file():
+        return None
+    try:
+        branch = json.loads(path.read_text())
+        int(branch["iteration"]), dict(branch["overrides"])
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as err:
+        raise ValueError(
+            f"{path} is damaged ({err}); it should hold the parent run, the iteration and the "
+            "overrides the branch was made with: restore it from the records, or delete it"
+        ) from err
+    return branch
 
 
 def run_variant(cfg: Any, branched_from: dict[str, Any] | None = None) -> str:
