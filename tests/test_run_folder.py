@@ -154,3 +154,32 @@ def test_a_run_made_before_a_field_existed_resumes_with_what_it_ran_with(tmp_pat
     for (section, name), value in FIELDS_ADDED_LATER.items():
         assert getattr(getattr(cfg, section), name) == value
     assert cfg.ppo.assist_in_ratio == "always" != TrainConfig().ppo.assist_in_ratio
+
+
+def test_a_run_of_an_older_recipe_is_refused_in_one_line_naming_its_commit(
+    tmp_path, capsys, monkeypatch
+) -> None:
+    """A checkpoint trained on other observation terms than today's recipe of its task (stand
+    read no velocity before Dec 6) is refused by `train --resume` and `eval` in one line that
+    names the changed group and git.json; nothing in the folder is touched."""
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    tiny = ["--num-envs", "4", "--num-steps-per-env", "8", "--iterations", "1"]
+    assert main(["train", "--out", str(tmp_path), "--run-name", "old", *tiny]) == 0
+    run = tmp_path / "old"
+    saved = json.loads((run / CONFIG_FILE).read_text())
+    terms = saved["task"]["observations"]["policy"]["terms"]
+    saved["task"]["observations"]["policy"]["terms"] = [
+        t for t in terms if t["name"] != "base_lin_vel"
+    ]
+    (run / CONFIG_FILE).write_text(json.dumps(saved))
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+    capsys.readouterr()
+    assert main(["train", "--resume", str(run), "--iterations", "2"]) == 2
+    assert main(["eval", str(run), "--num-envs", "2"]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 2, lines
+    for line in lines:
+        assert "Traceback" not in line and "policy observation read" in line, line
+        assert "'base_lin_vel']" in line and str(run / "git.json") in line, line
+    after = {p: p.read_bytes() for p in run.rglob("*") if p.is_file() and p.name != LOCK_FILE}
+    assert after == before

@@ -6,7 +6,10 @@
 # No TensorBoard events, and no checkpoints unless KEEP_LAST=1: then each run's last checkpoint
 # (checkpoints/last.pt, ~4 MB) and its live logs (metrics.jsonl, curriculum.jsonl) come too, so a
 # later session on a fresh machine continues the run exactly: restore_runs.sh DST runs/<study>, then
-# a2cf-mb train --resume runs/<study>/<run>. Usage: [KEEP_LAST=1 [KEEP_ONLY="RUN..."]] copy_runs.sh SRC DST
+# a2cf-mb train --resume runs/<study>/<run>. SKIP="metrics.json policy.json" leaves those files out
+# (their size counts against what a GPU visit carries). A branch (branch.json) keeps only its own
+# metrics.jsonl rows, from its branch iteration on: its parent's record holds the rest.
+# Usage: [KEEP_LAST=1 [KEEP_ONLY="RUN..."]] [SKIP="FILE..."] copy_runs.sh SRC DST
 set -euo pipefail
 SRC=$1
 DST=$2
@@ -15,11 +18,28 @@ for run in "$SRC"/*/; do
   [ -f "$run/config.json" ] || continue
   mkdir -p "$DST/$name"
   for f in config.json git.json branch.json evals.jsonl evals_checkpoints.jsonl warmstart.json policy.json; do
+    [[ " ${SKIP:-} " == *" $f "* ]] && continue
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
-  [ -f "$run/metrics.json" ] && gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+  if [ -f "$run/metrics.json" ] && [[ " ${SKIP:-} " != *" metrics.json "* ]]; then
+    gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+  fi
   [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
-  [ -f "$run/metrics.jsonl" ] && gzip -c "$run/metrics.jsonl" > "$DST/$name/metrics.jsonl.gz"
+  if [ -f "$run/metrics.jsonl" ]; then
+    python3 - "$run" <<'PY' | gzip -c > "$DST/$name/metrics.jsonl.gz"
+import json, sys
+from pathlib import Path
+
+run = Path(sys.argv[1])
+try:
+    start = json.loads((run / "branch.json").read_text())["iteration"]
+except (FileNotFoundError, json.JSONDecodeError, KeyError, TypeError):
+    start = None  # not a branch, or a damaged branch.json: every row
+for line in (run / "metrics.jsonl").read_text().splitlines():
+    if start is None or json.loads(line).get("iteration", start) >= start:
+        print(line)
+PY
+  fi
   keep=${KEEP_LAST:-0}
   # KEEP_ONLY="run_a run_b": of the runs, only these keep their checkpoint (the tracked tree is
   # what a GPU visit carries: docs/gpu.md)

@@ -37,6 +37,7 @@ from rl.runs.folder import (
     load_run_config,
     newest_readable_checkpoint,
     read_run_jsonl,
+    require_same_observations,
 )
 from rl.tasks.registry import resolve_task
 from rl.training.config import rsl_rl_config, with_task_defaults
@@ -99,6 +100,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             f"stopped during its first iteration; continue it with `a2cf-mb train --resume "
             f"{run_dir}`, or delete the folder"
         )
+    require_same_observations(run_dir, resolve_task(train_cfg))
     if cfg.use_onnx:
         _require_exported_policy(run_dir, train_cfg.export_onnx)
         onnx_policy = OnnxMotionPolicy(run_dir / POLICY_FILE)
@@ -246,7 +248,8 @@ def alone_from_checkpoint(
 def checkpoint_motion_policy(train_cfg: Any, env: G1VecEnv, path: Path) -> torch.nn.Module:
     """The deterministic motion policy of checkpoint ``path`` of a run of ``train_cfg`` on ``env``,
     on the env's device (a damaged checkpoint: :class:`~rl.runs.folder.DamagedRunFileError` naming
-    it)."""
+    it; a checkpoint of an older recipe of the task: :class:`~rl.runs.folder.RecipeChangedError`)."""
+    require_same_observations(path.parent.parent, env.task)
     state = load_checkpoint(path)
     mode = get_mode(train_cfg.mode)
     learner_env: VecEnv = env if mode.assist else MotionOnlyEnv(env)

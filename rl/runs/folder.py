@@ -432,6 +432,32 @@ def load_run_config(run_dir: str | Path) -> TrainConfig:
         ) from err
 
 
+class RecipeChangedError(ValueError):
+    """A run's checkpoint was trained on observations its task's recipe no longer has."""
+
+
+def require_same_observations(run_dir: str | Path, task: Any) -> None:
+    """Refuse, in one line, a run whose saved task read other observation terms than ``task``
+    (today's recipe of it) does: its checkpoint's input layers would not fit. The run's
+    ``git.json`` names the commit that can still load it. Runs saved without the task section
+    are not checked."""
+    try:
+        saved = read_config_file(run_dir, ("train", "task"))["task"]["observations"]
+        before = {g: [t["name"] for t in saved[g]["terms"]] for g in ("policy", "privileged")}
+    except (DamagedRunFileError, FileNotFoundError, KeyError, TypeError):
+        return
+    now = {g: [t.name for t in getattr(task.observations, g).terms] for g in before}
+    changed = [g for g in before if before[g] != now[g]]
+    if changed:
+        g = changed[0]
+        raise RecipeChangedError(
+            f"{run_dir} was trained on task '{task.name}' when its {g} observation read "
+            f"{before[g]}; today's '{task.name}' reads {now[g]} (its recipe changed since: "
+            f"docs/environments.md), so the run's checkpoints do not fit it. Check out the "
+            f"commit named in {Path(run_dir) / 'git.json'} to evaluate or continue this run"
+        )
+
+
 def _readable(path: Path) -> bool:
     try:
         load_checkpoint(path)

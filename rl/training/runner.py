@@ -80,6 +80,7 @@ from rl.runs.folder import (
     load_checkpoint,
     new_run_dir,
     remove_unstarted_run,
+    require_same_observations,
     start_point,
 )
 from rl.tasks.registry import resolve_task
@@ -496,6 +497,8 @@ def build_training(
     step for Algorithm 1)."""
     mode = get_mode(cfg.mode)
     task = resolve_task(cfg)
+    if cfg.resume:
+        require_same_observations(run_dir, task)
     if eta0 is None:
         eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(rank_env_config(cfg.env), task)

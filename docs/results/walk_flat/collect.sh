@@ -8,8 +8,9 @@
 set -euo pipefail
 DST=$(dirname "$0")
 SRC=${1:-runs/walk_flat}
-# Only the seed-0 baseline keeps its checkpoint (each is 5-7 MB of the tree a GPU visit carries)
-KEEP_LAST=1 KEEP_ONLY=${KEEP_ONLY:-walkflat_baseline_128_s0} bash "$DST/../copy_runs.sh" "$SRC" "$DST"
+# Only the seed-0 baseline keeps its checkpoint (each is 5-7 MB of the tree a GPU visit carries);
+# no metrics.json or policy.json per run (the records' rows and the confirmed exports hold them)
+KEEP_LAST=1 KEEP_ONLY=${KEEP_ONLY:-walkflat_baseline_128_s0} SKIP="metrics.json policy.json" bash "$DST/../copy_runs.sh" "$SRC" "$DST"
 runs=()
 for rec in "$DST"/walkflat_*_128_s*/; do
   [ -f "$rec/config.json" ] && runs+=("$rec")

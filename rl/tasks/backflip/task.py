@@ -28,7 +28,7 @@ from rl.envs.task_schema import InitialStateConfig, PushConfig, RandomizationCon
 from rl.envs.terms import RewardTerm, TerminationTerm
 from rl.tasks import rewards, terminations
 from rl.tasks.backflip import terms as bt
-from rl.tasks.stand.task import STAND_OBSERVATIONS
+from rl.tasks.stand.task import PROPRIOCEPTIVE_OBSERVATIONS
 
 GROUND = (bt.STAND, bt.CROUCH, bt.LAND)
 FLIGHT = (bt.JUMP, bt.AIR)
@@ -152,7 +152,7 @@ def backflip_task(artifact_path: str | Path | None = None) -> TaskConfig:
 _BACKFLIP = TaskConfig(
     name="backflip",
     description="standing backflip, FSM stand/crouch/jump/air/land started by c_t = 1_start",
-    observations=STAND_OBSERVATIONS,
+    observations=PROPRIOCEPTIVE_OBSERVATIONS,
     rewards=(
         # Task (paper table), each masked to its phase.
         RewardTerm("alive", bt.phase_alive, weight=2.0, params={"phases": (bt.STAND,)}),

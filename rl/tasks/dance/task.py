@@ -32,7 +32,7 @@ from rl.tasks.dance.terms import (
     track_joint_position,
     track_joint_rms,
 )
-from rl.tasks.stand.task import STAND_OBSERVATIONS
+from rl.tasks.stand.task import PROPRIOCEPTIVE_OBSERVATIONS
 
 
 def dance_task(clips: tuple[str | Path, ...] = (BUILTIN_CLIP,)) -> TaskConfig:
@@ -48,7 +48,7 @@ def dance_task(clips: tuple[str | Path, ...] = (BUILTIN_CLIP,)) -> TaskConfig:
 _DANCE = TaskConfig(
     name="dance",
     description="track dance clips: command [base step displacement, step rotation, joints]",
-    observations=STAND_OBSERVATIONS,
+    observations=PROPRIOCEPTIVE_OBSERVATIONS,
     rewards=(
         RewardTerm("base_position", track_base_position, weight=10.0, params={"scale": 2500.0}),
         RewardTerm("base_rotation", track_base_rotation, weight=5.0, params={"scale": 100.0}),

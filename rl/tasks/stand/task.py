@@ -3,7 +3,8 @@
 With the G1 gains a PD hold of the stand pose is an unstable equilibrium
 (:mod:`robots.standing`), so the policy must learn to balance. The episode fails when the pelvis
 drops below 0.45 m or tilts beyond 0.8 rad. Nothing pays for keeping both feet down, so the
-policy may step to recover from a push. Skill progress is the fraction of recent episodes that
+policy may step to recover from a push; it reads the pelvis velocity (a state estimator's), which
+tells it the push at once. Skill progress is the fraction of recent episodes that
 survived to the time-out, over a target of 0.9. The initial assist bound is the paper's walking row
 (the paper has no standing task; walking is the closest balance skill).
 """
@@ -45,16 +46,30 @@ CRITIC_EXTRA = (
 )
 """Critic-only terms after the clean policy and privileged terms."""
 
-STAND_OBSERVATIONS = ObservationsConfig(
+PROPRIOCEPTIVE_OBSERVATIONS = ObservationsConfig(
     policy=ObsGroup(PROPRIOCEPTION, noisy=True),
     privileged=ObsGroup(PRIVILEGED),
     critic=ObsGroup(PROPRIOCEPTION + PRIVILEGED + CRITIC_EXTRA),
 )
+"""What the robot's own sensors give the policy (dance, track, backflip; stand before Dec 6)."""
+
+BASE_LIN_VEL_ESTIMATE = ObsTerm("base_lin_vel", obs.base_lin_vel_b, noise=0.1)
+"""The pelvis velocity with 0.1 m/s of uniform noise: a state estimator's output, as mjlab's and
+legged_gym's G1 policies read it."""
+
+VELOCITY_OBSERVATIONS = ObservationsConfig(
+    policy=ObsGroup(PROPRIOCEPTION + (BASE_LIN_VEL_ESTIMATE,), noisy=True),
+    privileged=ObsGroup(PRIVILEGED),
+    critic=ObsGroup(PROPRIOCEPTION + PRIVILEGED + CRITIC_EXTRA),
+)
+"""The proprioceptive observations, and the policy also reads the pelvis velocity estimate (stand,
+walk-flat). Stand reads it since Dec 6: without it 80-86 % of 128 fresh envs survived the pushes
+at 2.6-5 M env steps (seed 23), with it 94-100 % of 32 from 1.1 M on (docs/results/stand_judge)."""
 
 STAND = TaskConfig(
     name="stand",
     description="stand and balance on both feet under random pushes (one phase, no command)",
-    observations=STAND_OBSERVATIONS,
+    observations=VELOCITY_OBSERVATIONS,
     rewards=(
         RewardTerm("alive", rewards.alive, weight=1.0),
         RewardTerm("upright", rewards.upright, weight=1.0, params={"std": 0.25}),

@@ -25,7 +25,7 @@ from rl.envs.task_schema import InitialStateConfig, PushConfig, SceneConfig, Ski
 from rl.envs.terms import RewardTerm, TerminationTerm
 from rl.tasks import rewards
 from rl.tasks.dance.clips import BUILTIN_CLIP
-from rl.tasks.stand.task import STAND_OBSERVATIONS
+from rl.tasks.stand.task import PROPRIOCEPTIVE_OBSERVATIONS
 from rl.tasks.track import terms
 from rl.tasks.track.command import MotionCommandConfig
 from rl.tasks.track.evaluation import TrackEvaluationConfig
@@ -35,7 +35,7 @@ TRACK = TaskConfig(
     name="track",
     description="track a reference motion (--reference PATH...; default: the built-in dance): "
     "command [q_ref, qd_ref, anchor pose seen from the robot]",
-    observations=STAND_OBSERVATIONS,
+    observations=PROPRIOCEPTIVE_OBSERVATIONS,
     rewards=(
         RewardTerm("anchor_position", terms.anchor_position, weight=0.5, params={"std": 0.3}),
         RewardTerm("anchor_orientation", terms.anchor_orientation, weight=0.5, params={"std": 0.4}),

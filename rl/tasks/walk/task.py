@@ -26,9 +26,8 @@ from rl.envs.task_schema import (
     TaskConfig,
 )
 from rl.envs.terms import ObsGroup, ObsTerm, RewardTerm, TerminationTerm
-from rl.tasks import observations as obs
 from rl.tasks import rewards, terminations
-from rl.tasks.stand.task import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION
+from rl.tasks.stand.task import CRITIC_EXTRA, PRIVILEGED, PROPRIOCEPTION, VELOCITY_OBSERVATIONS
 from rl.tasks.walk import terms as walk_terms
 from rl.tasks.walk.command import VelocityCommandConfig
 from rl.tasks.walk.curriculum import WALK_TERRAIN, TerrainCurriculumConfig
@@ -111,16 +110,10 @@ WALK_COMMANDS = VelocityCommandConfig(
 """Commands of the walk recipe: a 0.8 s gait clock and ranges that start at 30 % and widen while the
 robots track within 0.25 m/s."""
 
-WALK_FLAT_OBSERVATIONS = ObservationsConfig(
-    policy=ObsGroup(
-        PROPRIOCEPTION + (ObsTerm("base_lin_vel", obs.base_lin_vel_b, noise=0.1),), noisy=True
-    ),
-    privileged=ObsGroup(PRIVILEGED),
-    critic=ObsGroup(PROPRIOCEPTION + PRIVILEGED + CRITIC_EXTRA),
-)
-"""The stand's observations, and the policy also reads the pelvis velocity with 0.1 m/s of uniform
-noise (a state estimator's output, as mjlab's G1 velocity policy and legged_gym's read it): with
-the VAE's estimate alone the v1 recipe's policy stood where it was told to walk."""
+WALK_FLAT_OBSERVATIONS = VELOCITY_OBSERVATIONS
+"""The stand's observations: the policy also reads the pelvis velocity with 0.1 m/s of uniform noise
+(a state estimator's output, as mjlab's G1 velocity policy and legged_gym's read it): with the
+VAE's estimate alone the v1 recipe's policy stood where it was told to walk."""
 
 WALK_FLAT_REWARDS = tuple(
     dataclasses.replace(t, weight=2.0) if t.name == "track_lin_vel_xy" else t for t in WALK_REWARDS
