@@ -17,7 +17,9 @@ from rl.training.config import ModelConfig, PPOConfig, TrainConfig
 from rl.training.runner import train
 
 
-def robot_side_observation(bundle: dict, gyro, quat_wxyz, q, qdot, last_action) -> np.ndarray:
+def robot_side_observation(
+    bundle: dict, gyro, quat_wxyz, q, qdot, last_action, lin_vel
+) -> np.ndarray:
     """What a deployment script writes from the bundle's text: no import of the project."""
     w, x, y, z = quat_wxyz
     rot = np.array([
@@ -32,6 +34,7 @@ def robot_side_observation(bundle: dict, gyro, quat_wxyz, q, qdot, last_action) 
         "joint_pos": q - default,
         "joint_vel": qdot,
         "last_action": last_action,
+        "base_lin_vel": lin_vel,  # the state estimator's pelvis velocity, pelvis frame
     }
     obs = np.zeros(bundle["observation"]["width"])
     for term in bundle["observation"]["terms"]:
@@ -53,7 +56,8 @@ def test_bundle_rebuilds_the_observation_and_drives_the_onnx_policy(tmp_path):
     assert bundle["control"]["policy_rate_hz"] == 50.0 and len(bundle["joints"]) == 29
     assert bundle["joints"][3]["name"] == "left_knee_joint"
     assert {t["name"] for t in bundle["observation"]["terms"]} == {
-        "base_ang_vel", "projected_gravity", "joint_pos", "joint_vel", "last_action"}  # fmt: skip
+        "base_ang_vel", "projected_gravity", "joint_pos", "joint_vel", "last_action",
+        "base_lin_vel"}  # fmt: skip
     env = make_env(quiet(STAND), 2, num_threads=1)  # noise-free: the robot's true signals
     policy = OnnxMotionPolicy(run / bundle["onnx"])
     h = bundle["observation"]["history_length"]
@@ -70,6 +74,7 @@ def test_bundle_rebuilds_the_observation_and_drives_the_onnx_policy(tmp_path):
                 s.joint_pos_rad[i].numpy(),
                 s.joint_vel_rps[i].numpy(),
                 last_action[i],
+                s.base_lin_vel_b[i].numpy(),
             )  # fmt: skip
             for i in range(2)
         ]

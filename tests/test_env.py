@@ -54,7 +54,8 @@ def test_vecenv_api_shapes_and_dtypes():
     assert env.max_episode_length == round(env.task.episode_length_s / 0.02)
     obs = env.get_observations()
     p = obs["policy"].shape[1]
-    assert p == 3 + 3 + 3 * g1.NUM_JOINTS + env.task.commands.dim
+    # gyro, gravity, joint positions, velocities, last action, command, the velocity estimate
+    assert p == 3 + 3 + 3 * g1.NUM_JOINTS + env.task.commands.dim + 3
     expected = {
         "policy": p,
         "history": env.cfg.history_length * p,
@@ -104,7 +105,7 @@ def test_observation_terms_by_name():
     )
     names = [name for name, _, _ in env.observation_layout()["policy"]]
     assert names == ["base_ang_vel", "projected_gravity", "joint_pos", "joint_vel", "last_action",
-                     "command"]  # fmt: skip
+                     "command", "base_lin_vel"]  # fmt: skip
     with pytest.raises(KeyError, match="no term 'nope'"):
         env.observation_term("policy", "nope")
 

@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # Copy the figures of the skills-that-learn runs (no checkpoints, no TensorBoard events) into this
-# folder, then summarise them: collect.sh RUN_PARENT (default runs/skills_learn).
+# folder (metrics.json gzipped: the studies read it as is), then summarise them: collect.sh
+# RUN_PARENT (default runs/skills_learn).
 set -euo pipefail
 SRC=${1:-runs/skills_learn}
 DST=$(dirname "$0")
 for run in "$SRC"/*/; do
   name=$(basename "$run")
   mkdir -p "$DST/$name"
-  for f in config.json git.json metrics.json evals.jsonl evals_checkpoints.jsonl eval*.json \
+  [ -f "$run/metrics.json" ] && gzip -9 -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+  for f in config.json git.json evals.jsonl evals_checkpoints.jsonl eval*.json \
            walk_eval.json walk_eval.png eval_dance.png policy.json; do
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
