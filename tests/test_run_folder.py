@@ -183,3 +183,30 @@ def test_a_run_of_an_older_recipe_is_refused_in_one_line_naming_its_commit(
         assert "'base_lin_vel']" in line and str(run / "git.json") in line, line
     after = {p: p.read_bytes() for p in run.rglob("*") if p.is_file() and p.name != LOCK_FILE}
     assert after == before
+
+
+def test_a_resume_says_what_of_the_recipe_changed_since_the_run_began(
+    tmp_path, capsys, monkeypatch
+) -> None:
+    """A recipe change that still fits the checkpoint (a reward weight, a term added to or gone
+    from the rewards) is named in one warning when the run is resumed; a run whose recipe is
+    today's resumes without one."""
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    tiny = ["--num-envs", "4", "--num-steps-per-env", "8"]
+    assert (
+        main(["train", "--out", str(tmp_path), "--run-name", "r", *tiny, "--iterations", "1"]) == 0
+    )
+    run = tmp_path / "r"
+    capsys.readouterr()
+    assert main(["train", "--resume", str(run), "--iterations", "2"]) == 0
+    assert "recipe" not in capsys.readouterr().err
+    saved = json.loads((run / CONFIG_FILE).read_text())
+    rewards = saved["task"]["rewards"]
+    next(t for t in rewards if t["name"] == "alive")["weight"] = 7.0
+    saved["task"]["rewards"] = [t for t in rewards if t["name"] != "torques"]
+    (run / CONFIG_FILE).write_text(json.dumps(saved))
+    assert main(["train", "--resume", str(run), "--iterations", "3"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "recipe" in line]
+    assert len(warnings) == 1, warnings
+    assert "rewards[alive].weight: 7.0 -> 1.0" in warnings[0], warnings[0]
+    assert "rewards[torques]: added" in warnings[0], warnings[0]

@@ -458,6 +458,38 @@ def require_same_observations(run_dir: str | Path, task: Any) -> None:
         )
 
 
+def _recipe_leaves(node: Any, path: str = "") -> dict[str, Any]:
+    """The scalar leaves of a saved task config by path; list items that have a ``name`` (terms)
+    are keyed by it (``rewards[alive].weight``), so an added term is not a shift of the others."""
+    if isinstance(node, dict):
+        out: dict[str, Any] = {}
+        for key, value in node.items():
+            out.update(_recipe_leaves(value, f"{path}.{key}" if path else key))
+        return out
+    if isinstance(node, list) and node and all(isinstance(v, dict) and "name" in v for v in node):
+        out = {f"{path}[{v['name']}]": "present" for v in node}
+        for v in node:
+            out.update(_recipe_leaves(v, f"{path}[{v['name']}]"))
+        return out
+    return {path: node}
+
+
+def recipe_changes(run_dir: str | Path, task: Any) -> list[str]:
+    """What of the run's saved task config ``task`` (today's recipe of it) has changed: each leaf
+    both have that differs (``rewards[track_ang_vel_z].weight: 1.0 -> 2.0``) and each term one of
+    them lacks. Fields added to the schema since the run began are not changes (the run had
+    their default). Empty for a run saved without its task section."""
+    try:
+        saved = read_config_file(run_dir, ("train", "task"))["task"]
+    except (DamagedRunFileError, FileNotFoundError):
+        return []
+    before, now = _recipe_leaves(saved), _recipe_leaves(task.to_json_dict())
+    changes = [f"{k}: {before[k]!r} -> {now[k]!r}" for k in before if k in now and before[k] != now[k]]
+    changes += [f"{k}: removed" for k in before if k not in now and before[k] == "present"]
+    changes += [f"{k}: added" for k in now if k not in before and now[k] == "present"]
+    return changes
+
+
 def _readable(path: Path) -> bool:
     try:
         load_checkpoint(path)

@@ -79,6 +79,7 @@ from rl.runs.folder import (
     RunFolderLock,
     load_checkpoint,
     new_run_dir,
+    recipe_changes,
     remove_unstarted_run,
     require_same_observations,
     start_point,
@@ -499,6 +500,17 @@ def build_training(
     task = resolve_task(cfg)
     if cfg.resume:
         require_same_observations(run_dir, task)
+        changes = recipe_changes(run_dir, task)
+        if changes and process_rank().rank == 0:
+            shown = "; ".join(changes[:6]) + (
+                f"; and {len(changes) - 6} more" if changes[6:] else ""
+            )
+            print(
+                f"a2cf-mb train: warning: the recipe of task '{task.name}' changed since {run_dir} "
+                f"began ({shown}); the resumed iterations train on today's recipe (the run's "
+                f"git.json names the commit it began on)",
+                file=sys.stderr,
+            )
     if eta0 is None:
         eta0 = warmstart_eta0(cfg, task)
     env = G1VecEnv(rank_env_config(cfg.env), task)

@@ -70,9 +70,11 @@ def branch(run: Path, k: int, name: str, overrides: dict) -> Path:
         provenance = {"run": run.name, "iteration": k, "overrides": overrides}
         atomic_write_json(part / BRANCH_FILE, provenance)
         try:
-            resolve_task(load_run_config(part))  # an unknown field or a bad value: one line
+            task = resolve_task(load_run_config(part))  # an unknown field or a bad value: one line
         except (KeyError, TypeError, ValueError) as err:
             raise SystemExit(f"the overrides {overrides} do not fit the task: {err}") from err
+        config["task"] = task.to_json_dict()  # the branch's recipe, as a run saves its own
+        atomic_write_json(part / "config.json", config, indent=1)
         part.rename(new)
     return new
 
