@@ -9,6 +9,7 @@
 # a2cf-mb train --resume runs/<study>/<run>. SKIP="metrics.json policy.json" leaves those files out
 # (their size counts against what a GPU visit carries). A branch (branch.json) keeps only its own
 # metrics.jsonl rows, from its branch iteration on: its parent's record holds the rest.
+# Gzipped with -n (no name or time in the header): an unchanged file recompresses byte for byte.
 # Usage: [KEEP_LAST=1 [KEEP_ONLY="RUN..."]] [SKIP="FILE..."] copy_runs.sh SRC DST
 set -euo pipefail
 SRC=$1
@@ -22,11 +23,11 @@ for run in "$SRC"/*/; do
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
   if [ -f "$run/metrics.json" ] && [[ " ${SKIP:-} " != *" metrics.json "* ]]; then
-    gzip -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+    gzip -n -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
   fi
-  [ -f "$run/curriculum.jsonl" ] && gzip -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
+  [ -f "$run/curriculum.jsonl" ] && gzip -n -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
   if [ -f "$run/metrics.jsonl" ]; then
-    python3 - "$run" <<'PY' | gzip -c > "$DST/$name/metrics.jsonl.gz"
+    python3 - "$run" <<'PY' | gzip -n -c > "$DST/$name/metrics.jsonl.gz"
 import json, sys
 from pathlib import Path
 
