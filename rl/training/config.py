@@ -42,8 +42,8 @@ class PPOConfig:
     kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" actions' or "all" (rsl-rl's) [-]
     assist_init_noise_std: float = 0.3
     """initial std of the raw assist actions, before tanh (the paper: 1.0) [-]"""
-    assist_in_ratio: str = "while_helping"
-    """PPO's ratio and entropy over the assist actions "while_helping" (dropped once the curriculum has turned assistance off for good) or "always" (rsl-rl's joint action) [-]"""
+    assist_in_ratio: str = "always"
+    """PPO's ratio and entropy over the assist actions "always" (rsl-rl's joint action, the paper's) or "while_helping" (dropped once the curriculum has turned assistance off for good) [-]"""
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared (a saved config is checked on load too)."""
