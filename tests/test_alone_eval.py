@@ -153,8 +153,8 @@ def test_target_progress_is_the_smaller_ratio_and_one_where_reached() -> None:
             "a2cf",
             None,
             CurriculumConfig(),
-            PPOConfig(assist_in_ratio="always"),
-            "a2cf ratio:always",
+            PPOConfig(assist_in_ratio="while_helping"),
+            "a2cf ratio:while_helping",
         ),
         # stand's update is 2 PPO + 1 encoder pass; 5 + 0 (PPO's passes) differs
         (

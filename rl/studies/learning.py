@@ -184,7 +184,7 @@ def run_variant(cfg: Any, branched_from: dict[str, Any] | None = None) -> str:
     warm-started, ``+paper`` when its curriculum follows the paper's rules, else the curriculum's
     skill trigger (``skill:<measure>@<progress>``), its fixed schedule (``anneal:<iterations>``,
     ``anneal:off``), whose KL sets the learning rate (``kl:all``) and whether the assist actions
-    stay in PPO's ratio after the help (``ratio:always``) where they differ from today's defaults;
+    leave PPO's ratio after the help (``ratio:while_helping``) where they differ from today's defaults;
     for any mode, its update (``update:<PPO passes>+<encoder passes>``) where it differs from its
     task's today; last, its task changes (``task:<field>=<value>,...``; ``@K`` after a change made
     where the run was branched from another at iteration K)."""
