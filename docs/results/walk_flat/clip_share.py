@@ -25,6 +25,8 @@ from torch.distributions import Normal
 sys.path.insert(0, str(Path(__file__).parent))
 from branch import branch  # noqa: E402
 
+from optimal_control.files import atomic_write_json  # noqa: E402
+
 
 def watch(run: Path, k: int, n: int) -> dict:
     from rsl_rl.storage import RolloutStorage
@@ -61,7 +63,7 @@ def watch(run: Path, k: int, n: int) -> dict:
                 ),
             }
             row = {}
-            clip = self.clip
+            clip = clips[0]
             for name, lr in log_r.items():
                 r = lr.exp()
                 outside = (r - 1).abs() > clip
@@ -102,12 +104,11 @@ def watch(run: Path, k: int, n: int) -> dict:
         return clip_grad_norm(parameters, max_norm, *args, **kwargs)
 
     grads: list[dict] = []
+    clips: list[float] = []  # the run's clip, read from its config below
     with tempfile.TemporaryDirectory(dir=run.parent) as tmp:
         name = f"{Path(tmp).name}_{run.name}"
         new = branch(run, k, name, {})
-        # the clip of the run's config, read once for the watcher
-        config = json.loads((new / "config.json").read_text())
-        A2CFActor.clip = config["train"]["ppo"]["clip_param"]
+        clips[:] = [json.loads((new / "config.json").read_text())["train"]["ppo"]["clip_param"]]
         RolloutStorage.mini_batch_generator = watched_generator
         A2CFActor.get_output_log_prob = watched_log_prob
         torch.nn.utils.clip_grad_norm_ = watched_clip_grad_norm
@@ -134,8 +135,16 @@ def watch(run: Path, k: int, n: int) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) < 5:
         raise SystemExit(__doc__)
-    out, k, n = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+    out = Path(sys.argv[1])
+    try:
+        k, n = int(sys.argv[2]), int(sys.argv[3])
+    except ValueError:
+        raise SystemExit(
+            f"K and N must be whole numbers of iterations, got {sys.argv[2:4]}"
+        ) from None
+    if not out.parent.is_dir():
+        raise SystemExit(f"{out.parent} does not exist; give OUT.json in an existing folder")
     results = [watch(Path(r), k, n) for r in sys.argv[4:]]
-    out.write_text(json.dumps(results, indent=1) + "\n")
+    atomic_write_json(out, results, indent=1)
     for r in results:
         print(json.dumps(r))
