@@ -12,6 +12,7 @@ from test_training import read_jsonl, tiny_config
 
 from rl.a2cf.config import CurriculumConfig
 from rl.envs.task_schema import SkillTarget
+from rl.evaluation.alone import target_held
 from rl.evaluation.config import AloneEvalConfig
 from rl.evaluation.policy import evaluate_checkpoints
 from rl.runs.folder import CHECKPOINT_DIR, EVALS_LOG, LAST_CHECKPOINT
@@ -48,6 +49,15 @@ def test_evaluations_during_training_leave_training_bit_identical(tmp_path) -> N
         assert row["num_envs"] == 3 and row["target"] == "survival >= 0.9"
     assert a["alone_eval"] == rows  # in the checkpoint: a resume keeps them
     assert with_eval.metrics["alone_evaluations"] == rows
+    # the summary's claim is the judge's (two consecutive evaluations), not one draw
+    held = target_held(rows)
+    assert with_eval.metrics["alone_target_held_at"] == (
+        {"iteration": held["iteration"], "env_steps": held["env_steps"]} if held else None
+    )
+    once = next((r for r in rows if r["target_reached"]), None)
+    assert (with_eval.metrics["alone_target_first_reached_once_at"] or {}).get("iteration") == (
+        once or {}
+    ).get("iteration")
     assert not (without.run_dir / EVALS_LOG).exists()
 
 
@@ -225,7 +235,7 @@ def test_a_target_counts_where_it_held_twice_and_is_confirmed_on_128_envs(tmp_pa
     """One evaluation reaching the target is a noisy draw: the study's judge takes the first of
     two consecutive evaluations that reached it, and that checkpoint's >= 128-env confirmations."""
     from rl.runs.folder import CHECKPOINT_EVALS_LOG
-    from rl.studies.learning import confirmations_at, confirmed_pair, target_held
+    from rl.studies.learning import confirmations_at, confirmed_pair
 
     def row(it: int, reached: bool, envs: int = 32) -> dict:
         return {"iteration": it, "env_steps": it * 10, "num_envs": envs, "target_reached": reached}

@@ -183,7 +183,7 @@ def _run_entry(name: str, skill_error: float, survival: float, warm: bool) -> di
     metrics = {
         "iterations_done": 320, "mean_iteration_time_s": 1.4,
         "iterations": [{"env_steps": 3072}] * 320,
-        "alone_evaluations": [{}] * 10, "alone_target_reached_at": None,
+        "alone_evaluations": [{}] * 10, "alone_target_held_at": None,
     }  # fmt: skip
     warmstart = {
         "config": {"rounds": 3, "steps_per_round": 48}, "coach": "the oracle's coach",

@@ -151,9 +151,10 @@ class AloneEvaluation:
         text = "".join(json.dumps(r) + "\n" for r in self.rows)
         atomic_write_text(self.run_dir / EVALS_LOG, text)
 
-    def first_reached(self) -> dict[str, Any] | None:
-        """The first row that reached the task's target (None: not yet)."""
-        return next((r for r in self.rows if r["target_reached"]), None)
+    def first_held(self) -> dict[str, Any] | None:
+        """The first row from which the task's target held at two consecutive evaluations
+        (None: not yet); see :func:`target_held`."""
+        return target_held(self.rows)
 
     @staticmethod
     def scalars(row: dict[str, Any]) -> dict[str, float]:
@@ -168,6 +169,15 @@ class AloneEvaluation:
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 out[f"Eval/{key}"] = float(value)
         return out
+
+
+def target_held(rows: list[dict[str, Any]], times: int = 2) -> dict[str, Any] | None:
+    """The first evaluation row from which the target held at ``times`` consecutive evaluations
+    (the judge of a learning claim: one 32-env evaluation reaching it is one noisy draw of many)."""
+    for i in range(len(rows) - times + 1):
+        if all(r["target_reached"] for r in rows[i : i + times]):
+            return rows[i]
+    return None
 
 
 def curve_arrays(rows: list[dict[str, Any]], metric: str) -> tuple[np.ndarray, np.ndarray]:

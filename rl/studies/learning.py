@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
-from rl.evaluation.alone import curve_arrays
+from rl.evaluation.alone import curve_arrays, target_held
 from rl.runs.folder import (
     CHECKPOINT_EVALS_LOG,
     EVALS_LOG,
@@ -71,15 +71,6 @@ def _wall_s_at(run_dir: Path, iteration: int) -> float | None:
     if not rows or len(rows) < iteration:
         return None
     return float(sum(r["iteration_time_s"] for r in rows[:iteration]))
-
-
-def target_held(rows: list[dict[str, Any]], times: int = 2) -> dict[str, Any] | None:
-    """The first evaluation row from which the target held at ``times`` consecutive evaluations
-    (the judge of a learning claim: one 32-env evaluation reaching it is one noisy draw of many)."""
-    for i in range(len(rows) - times + 1):
-        if all(r["target_reached"] for r in rows[i : i + times]):
-            return rows[i]
-    return None
 
 
 def confirmed_pair(run_dir: Path, rows: list[dict[str, Any]]) -> dict[str, Any] | None:
