@@ -37,6 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluation.policy.evaluate_checkpoints` and print where the target was reached."""
+    from rl.evaluation.alone import target_held
     from rl.evaluation.config import AloneEvalConfig
     from rl.evaluation.policy import evaluate_checkpoints
     from rl.runs.folder import CHECKPOINT_EVALS_LOG
@@ -52,12 +53,20 @@ def run(args: argparse.Namespace) -> int:
     if not rows:
         print(f"no checkpoint of {args.run_dir} evaluated with these envs and seed")
         return 0
-    first = next((r for r in rows if r["target_reached"]), None)
-    where = (
-        f"reached at iteration {first['iteration']} ({first['env_steps']:,} env steps)"
-        if first
-        else "not reached"
-    )
+    held = target_held(rows)
+    once = next((r for r in rows if r["target_reached"]), None)
+    if held:
+        where = (
+            f"held at two consecutive checkpoints from iteration {held['iteration']} "
+            f"({held['env_steps']:,} env steps)"
+        )
+    elif once:
+        where = (
+            f"reached at iteration {once['iteration']}, never at two consecutive checkpoints "
+            "(one evaluation is one noisy draw)"
+        )
+    else:
+        where = "not reached"
     print(
         f"{len(rows)} checkpoints in {args.run_dir}/{CHECKPOINT_EVALS_LOG}; target {rows[-1]['target']}: {where}"
     )
