@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -285,3 +286,36 @@ def test_study_scripts_end_bad_input_in_one_line(monkeypatch) -> None:
         int("many")
     with pytest.raises(KeyError), one_line_errors():
         raise KeyError("a bug is not bad input")
+
+
+def test_records_packed_for_the_tree_read_back_as_the_logs_rounded(tmp_path) -> None:
+    """docs/results/pack_record.py: floats to 6 significant digits, the same bytes each time (an
+    unchanged log leaves its record unchanged), a branch's rows from its iteration on, and a log
+    that is not JSON named in one line."""
+    import subprocess
+    import sys
+
+    from rl.studies.learning import read_metric_rows
+
+    script = Path(__file__).resolve().parents[1] / "docs" / "results" / "pack_record.py"
+    rows = [{"iteration": k, "iteration_time_s": 0.1234567891 * (k + 1), "losses": {"v": 1 / 3}}
+            for k in range(4)]  # fmt: skip
+    log = tmp_path / "metrics.jsonl"
+    log.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    rec = tmp_path / "rec"
+    rec.mkdir()
+
+    def pack(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True)
+
+    assert pack(str(log), str(rec / "metrics.jsonl.gz"), "--from-iteration", "2").returncode == 0
+    first = (rec / "metrics.jsonl.gz").read_bytes()
+    back = read_metric_rows(rec)
+    assert [r["iteration"] for r in back] == [2, 3]
+    assert back[0]["iteration_time_s"] == 0.370370 and back[0]["losses"]["v"] == 0.333333
+    assert pack("--in-place", str(rec / "metrics.jsonl.gz")).returncode == 0
+    assert (rec / "metrics.jsonl.gz").read_bytes() == first  # packing a record again: same bytes
+    log.write_text("not json\n")
+    bad = pack(str(log), str(rec / "bad.jsonl.gz"))
+    assert bad.returncode == 1 and "metrics.jsonl is not a readable JSON" in bad.stderr
+    assert not (rec / "bad.jsonl.gz").exists()

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Copy the run folders under SRC into DST as study records: each run's config.json, git.json,
 # branch.json, evals*.jsonl, warmstart.json, policy.json, metrics.json and curriculum.jsonl
-# (gzipped), and each oracle artifact's oracle.json (its reference and arrays stay out: a clip may
+# (packed), and each oracle artifact's oracle.json (its reference and arrays stay out: a clip may
 # not be ours).
 # No TensorBoard events, and no checkpoints unless KEEP_LAST=1: then each run's last checkpoint
 # (checkpoints/last.pt, ~4 MB) and its live logs (metrics.jsonl, curriculum.jsonl) come too, so a
@@ -9,7 +9,8 @@
 # a2cf-mb train --resume runs/<study>/<run>. SKIP="metrics.json policy.json" leaves those files out
 # (their size counts against what a GPU visit carries). A branch (branch.json) keeps only its own
 # metrics.jsonl rows, from its branch iteration on: its parent's record holds the rest.
-# Gzipped with -n (no name or time in the header): an unchanged file recompresses byte for byte.
+# Packed by pack_record.py: floats to 6 significant digits, gzipped with no name or time in the
+# header, so an unchanged log packs byte for byte.
 # Usage: [KEEP_LAST=1 [KEEP_ONLY="RUN..."]] [SKIP="FILE..."] copy_runs.sh SRC DST
 set -euo pipefail
 SRC=$1
@@ -22,24 +23,17 @@ for run in "$SRC"/*/; do
     [[ " ${SKIP:-} " == *" $f "* ]] && continue
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
+  pack="python3 $(dirname "$0")/pack_record.py"
   if [ -f "$run/metrics.json" ] && [[ " ${SKIP:-} " != *" metrics.json "* ]]; then
-    gzip -n -c "$run/metrics.json" > "$DST/$name/metrics.json.gz"
+    $pack "$run/metrics.json" "$DST/$name/metrics.json.gz"
   fi
-  [ -f "$run/curriculum.jsonl" ] && gzip -n -c "$run/curriculum.jsonl" > "$DST/$name/curriculum.jsonl.gz"
+  [ -f "$run/curriculum.jsonl" ] && $pack "$run/curriculum.jsonl" "$DST/$name/curriculum.jsonl.gz"
   if [ -f "$run/metrics.jsonl" ]; then
-    python3 - "$run" <<'PY' | gzip -n -c > "$DST/$name/metrics.jsonl.gz"
-import json, sys
-from pathlib import Path
-
-run = Path(sys.argv[1])
-try:
-    start = json.loads((run / "branch.json").read_text())["iteration"]
-except (FileNotFoundError, json.JSONDecodeError, KeyError, TypeError):
-    start = None  # not a branch, or a damaged branch.json: every row
-for line in (run / "metrics.jsonl").read_text().splitlines():
-    if start is None or json.loads(line).get("iteration", start) >= start:
-        print(line)
-PY
+    # a branch keeps its own rows only, from its branch iteration on
+    start=$(python3 -c 'import json,sys
+try: print(json.load(open(sys.argv[1]))["iteration"])
+except (OSError, ValueError, KeyError, TypeError): pass' "$run/branch.json")
+    $pack "$run/metrics.jsonl" "$DST/$name/metrics.jsonl.gz" ${start:+--from-iteration "$start"}
   fi
   keep=${KEEP_LAST:-0}
   # KEEP_ONLY="run_a run_b": of the runs, only these keep their checkpoint (the tracked tree is

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Copy the figures of the lifecycle runs (no checkpoints, no TensorBoard events; metrics.json and
-# curriculum.jsonl gzipped) into this folder, then summarise them with the baselines of
+# curriculum.jsonl packed by ../pack_record.py) into this folder, then summarise them with the baselines of
 # docs/results/skills_learn: collect.sh RUN_PARENT (default runs/a2cf_lifecycle).
 set -euo pipefail
 SRC=${1:-runs/a2cf_lifecycle}
@@ -14,7 +14,7 @@ for run in "$SRC"/*/; do
     [ -f "$run/$f" ] && cp "$run/$f" "$DST/$name/"
   done
   for f in metrics.json curriculum.jsonl; do
-    [ -f "$run/$f" ] && gzip -c "$run/$f" > "$DST/$name/$f.gz"
+    [ -f "$run/$f" ] && python3 "$DST/../pack_record.py" "$run/$f" "$DST/$name/$f.gz"
   done
 done
 # from the copies here (metrics.json.gz is read as is): the figures need nothing outside the repo

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Copy the track_learn runs' figures (no checkpoints, no TensorBoard events; metrics.json gzipped)
+# Copy the track_learn runs' figures (no checkpoints, no TensorBoard events; metrics.json packed by ../pack_record.py)
 # into this folder and summarise them: collect.sh [RUN_PARENT] (default runs/track_learn).
 set -euo pipefail
 SRC=${1:-runs/track_learn}
