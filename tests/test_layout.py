@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import ast
+import subprocess
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "rl"
 RANK = {"config_bounds": 0, "runs": 0, "envs": 1, "agents": 1, "tasks": 2, "a2cf": 3,
@@ -87,3 +90,24 @@ def test_no_import_circle() -> None:
 def test_few_modules_at_the_top() -> None:
     top = sorted(p.name for p in ROOT.glob("*.py"))
     assert len(top) <= 4, top
+
+
+TREE_BUDGET_MIB = 52
+"""The tracked tree travels with every GPU visit's call beside a part of the payload, 64 MiB in
+all (docs/gpu.md): at 52 MiB the 108 MiB payload goes in 11 calls of 10 MiB parts."""
+
+
+def test_the_tracked_tree_leaves_a_gpu_visit_room_for_its_payload() -> None:
+    repo = ROOT.parent
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=repo, capture_output=True)
+    if listed.returncode != 0:
+        pytest.skip("not a git checkout")
+    paths = (repo / n.decode() for n in listed.stdout.split(b"\0") if n)
+    sizes = {p: p.stat().st_size for p in paths if p.is_file() and not p.is_symlink()}
+    total = sum(sizes.values()) / 2**20
+    largest = sorted(sizes, key=sizes.get, reverse=True)[:5]
+    assert total <= TREE_BUDGET_MIB, (
+        f"the tracked tree is {total:.1f} MiB, over {TREE_BUDGET_MIB}: pack study records "
+        "(docs/results/pack_record.py) or leave checkpoints and videos out; largest: "
+        + ", ".join(f"{p.relative_to(repo)} ({sizes[p] / 2**20:.1f} MiB)" for p in largest)
+    )
