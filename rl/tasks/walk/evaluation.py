@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
+import numpy as np
 import torch
 
 from optimal_control.files import atomic_savefig, atomic_write_json
@@ -198,13 +199,17 @@ class WalkEvaluator:
         }
         run_dir = Path(run_dir)
         atomic_write_json(run_dir / EVAL_JSON, result)
-        _plot(table, run_dir / EVAL_PLOT)
+        _plot(table, result["per_command"], result["survival"], run_dir / EVAL_PLOT)
         result["plot"] = str(run_dir / EVAL_PLOT)
         return result
 
 
-def _plot(table: list[dict[str, Any]], path: Path) -> None:
-    """Survival, tracking errors and distance per terrain type against level."""
+def _plot(
+    table: list[dict[str, Any]], per_command: list[dict[str, Any]], survival: float, path: Path
+) -> None:
+    """Velocity and yaw-rate errors per command beside a robot standing still's on the same steps
+    (the bar a walker must beat), and, where the evaluation spans terrain levels, survival,
+    tracking errors and distance per terrain type against level."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -216,17 +221,37 @@ def _plot(table: list[dict[str, Any]], path: Path) -> None:
         ("yaw_rate_error_rps", "yaw-rate error [rad/s]"),
         ("distance_m", "distance [m]"),
     )
-    fig, axes = plt.subplots(1, len(metrics), figsize=(16, 3.6))
-    for kind in sorted({r["terrain"] for r in table}):
-        rows = sorted((r for r in table if r["terrain"] == kind), key=lambda r: r["level"])
-        for ax, (key, _) in zip(axes, metrics, strict=True):
-            ax.plot([r["level"] for r in rows], [r[key] for r in rows], "o-", label=kind)
-    for ax, (_, label) in zip(axes, metrics, strict=True):
-        ax.set_xlabel("terrain level")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle("walk evaluation, assistance off")
+    errors = (
+        ("lin_vel_error_mps", "lin. vel. error [m/s]"),
+        ("yaw_rate_error_rps", "yaw-rate error [rad/s]"),
+    )
+    by_level = len(table) > 1  # one level (flat): its row is the overall figures, in the title
+    panels = (len(metrics) if by_level else 0) + (len(errors) if per_command else 0)
+    fig, axes = plt.subplots(1, max(panels, 1), figsize=(4 * max(panels, 1), 3.6), squeeze=False)
+    axes = list(axes[0])
+    if by_level:
+        level_axes, axes = axes[: len(metrics)], axes[len(metrics) :]
+        for kind in sorted({r["terrain"] for r in table}):
+            rows = sorted((r for r in table if r["terrain"] == kind), key=lambda r: r["level"])
+            for ax, (key, _) in zip(level_axes, metrics, strict=True):
+                ax.plot([r["level"] for r in rows], [r[key] for r in rows], "o-", label=kind)
+        for ax, (_, label) in zip(level_axes, metrics, strict=True):
+            ax.set_xlabel("terrain level")
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+        level_axes[0].legend(fontsize=7)
+    if per_command:
+        names = [r["command"] for r in per_command]
+        x = np.arange(len(names))
+        for ax, (key, label) in zip(axes, errors, strict=True):
+            ax.bar(x - 0.2, [r[key] for r in per_command], 0.4, label="policy")
+            ax.bar(x + 0.2, [r[f"standing_still_{key}"] for r in per_command], 0.4,
+                   color="0.7", label="standing still")  # fmt: skip
+            ax.set_xticks(x, names, rotation=30, ha="right", fontsize=8)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3, axis="y")
+        axes[0].legend(fontsize=7)
+    fig.suptitle(f"walk evaluation, assistance off: survival {survival:.0%}")
     fig.tight_layout()
     atomic_savefig(fig, path, dpi=100)
     plt.close(fig)
