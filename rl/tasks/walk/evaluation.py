@@ -225,7 +225,8 @@ def _plot(
         ("lin_vel_error_mps", "lin. vel. error [m/s]"),
         ("yaw_rate_error_rps", "yaw-rate error [rad/s]"),
     )
-    by_level = len(table) > 1  # one level (flat): its row is the overall figures, in the title
+    # one level (flat): its row is the overall figures, so the panels per command say more
+    by_level = len(table) > 1 or not per_command
     panels = (len(metrics) if by_level else 0) + (len(errors) if per_command else 0)
     fig, axes = plt.subplots(1, max(panels, 1), figsize=(4 * max(panels, 1), 3.6), squeeze=False)
     axes = list(axes[0])
