@@ -55,7 +55,7 @@ def test_evaluations_during_training_leave_training_bit_identical(tmp_path) -> N
     assert with_eval.metrics["alone_target_held_at"] == (
         {"iteration": held["iteration"], "env_steps": held["env_steps"]} if held else None
     )
-    once = next((r for r in rows if r["target_reached"]), None)
+    once = next((r for r in rows if r["target_reached"]), None)  # the judge's, written out
     assert (with_eval.metrics["alone_target_first_reached_once_at"] or {}).get("iteration") == (
         once or {}
     ).get("iteration")

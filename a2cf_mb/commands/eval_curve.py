@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluation.policy.evaluate_checkpoints` and print where the target was reached."""
-    from rl.evaluation.alone import target_held
+    from rl.evaluation.alone import first_reached_once, target_held
     from rl.evaluation.config import AloneEvalConfig
     from rl.evaluation.policy import evaluate_checkpoints
     from rl.runs.folder import CHECKPOINT_EVALS_LOG
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"no checkpoint of {args.run_dir} evaluated with these envs and seed")
         return 0
     held = target_held(rows)
-    once = next((r for r in rows if r["target_reached"]), None)
+    once = first_reached_once(rows)
     if held:
         where = (
             f"held at two consecutive checkpoints from iteration {held['iteration']} "

@@ -68,11 +68,14 @@ def main(argv: list[str] | None = None) -> int:
     else:
         parser.error("give SRC DST.gz, or --in-place RECORD.gz...")
     for src, dst in jobs:
+        lines = src.name.removesuffix(".gz").endswith(".jsonl")
+        if args.from_iteration is not None and not lines:
+            parser.error(f"--from-iteration applies to JSON lines (*.jsonl), not {src}")
+        if not dst.parent.is_dir():
+            parser.error(f"{dst.parent} does not exist; give DST.gz in an existing folder")
         try:
-            text = read_text(src)
-            lines = src.name.removesuffix(".gz").endswith(".jsonl")
-            out = packed(text, lines, args.from_iteration)
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, gzip.BadGzipFile) as err:
+            out = packed(read_text(src), lines, args.from_iteration)
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
             print(
                 f"pack_record: {src} is not a readable JSON or JSON-lines log ({err})",
                 file=sys.stderr,

@@ -180,6 +180,11 @@ def target_held(rows: list[dict[str, Any]], times: int = 2) -> dict[str, Any] | 
     return None
 
 
+def first_reached_once(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The first evaluation row that reached the target: one draw, not a claim (:func:`target_held`)."""
+    return next((r for r in rows if r["target_reached"]), None)
+
+
 def curve_arrays(rows: list[dict[str, Any]], metric: str) -> tuple[np.ndarray, np.ndarray]:
     """(env steps, values) of ``metric`` (``survival_fraction`` or a task metric) over ``rows``."""
     steps, values = [], []

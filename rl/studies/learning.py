@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
-from rl.evaluation.alone import curve_arrays, target_held
+from rl.evaluation.alone import curve_arrays, first_reached_once, target_held
 from rl.runs.folder import (
     CHECKPOINT_EVALS_LOG,
     EVALS_LOG,
@@ -115,7 +115,7 @@ def run_summary(run_dir: str | Path) -> dict[str, Any]:
     # a branch's own evaluations start after its branch point: before it the run is its parent
     own = [r for r in rows if r["iteration"] > branch["iteration"]] if branch else rows
     first = target_held(own)
-    once = next((r for r in own if r["target_reached"]), None)
+    once = first_reached_once(own)
     confirmations = confirmations_at(run_dir, first["iteration"]) if first else []
     pair = confirmed_pair(run_dir, own)
     metric = task.target.metric

@@ -65,7 +65,7 @@ from rl.a2cf.modes import MotionOnlyEnv
 from rl.a2cf.warmstart import require_joint_reference, warm_start, warmstart_eta0
 from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.evaluation.alone import AloneEvaluation
+from rl.evaluation.alone import AloneEvaluation, first_reached_once
 from rl.runs.folder import (
     CHECKPOINT_DIR,
     CONFIG_FILE,
@@ -755,7 +755,7 @@ def summarise(runner: A2CFRunner, cfg: TrainConfig) -> dict[str, Any]:
     alone = runner.alone_eval
     if alone is not None and alone.rows:
         held = alone.first_held()
-        once = next((r for r in alone.rows if r["target_reached"]), None)
+        once = first_reached_once(alone.rows)
         summary["alone_target"] = runner.env.task.target.describe()
         # the claim: held at two consecutive evaluations (one 32-env draw reaching it flatters);
         # confirm that checkpoint on >= 128 fresh envs with `a2cf-mb eval-curve --num-envs 128`
