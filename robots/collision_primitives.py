@@ -14,14 +14,12 @@ the body frame. A box is the tightest axis-aligned box in the body frame or in t
 (PCA) frame; a capsule takes an axis among those six, the exact minimal enclosing circle of the
 vertices projected across it as its radius and the shortest half-length that still holds every
 vertex. Both enclose every vertex, so a primitive touches whatever the mesh would have touched,
-never later; how much earlier, against a plane (support-function excess over 4000 directions): a
-median of 0.2-4 cm and at most 1-6 cm (box corners). Fit volume / hull volume of the chosen
-primitives is 1.33 to 1.93 (pelvis box 1.55, thigh capsule 1.64, shin box 1.68, torso box 1.48,
-head box 1.68, elbow capsule 1.86, hand box 1.92). MuJoCo's own fitting (a primitive geom with ``meshname``) is worse for this: the
-default fit matches the mesh's inertia and encloses 15-64 % of the vertices (volume ratio 0.6-1.0);
-with ``compiler.fitaabb`` boxes in the inertial frame enclose all vertices but are 1.45-2.35 times the
-hull, and capsules enclose 8-93 % and fail to compile ("size 1 must be positive") for the pelvis,
-logo and wrist meshes, which are not elongated.
+never later (how much earlier, and each fit's volume against the hull's: ``docs/environments.md``).
+MuJoCo's own fitting (a primitive geom with ``meshname``) is worse for this: the default fit matches
+the mesh's inertia and leaves vertices outside; with ``compiler.fitaabb`` boxes in the inertial
+frame enclose all vertices but are larger than ours, and capsules leave vertices outside and fail
+to compile ("size 1 must be positive") for the pelvis, logo and wrist meshes, which are not
+elongated.
 
 Type: the capsule is taken when its volume is at most :data:`CAPSULE_VOLUME_TOLERANCE` times the
 box's (capsules are the cheaper, smoother contact), decided once per left/right pair so that both
@@ -35,11 +33,11 @@ which survive mesh removal) of :mod:`robots.mujoco_model`. Terrain geoms must ke
 conaffinity to be hit by links. For self-collision set ``LinkCollisionConfig.conaffinity = 2``
 (MuJoCo filters parent-child pairs).
 
-Known flaw (measured Dec 6, ``docs/results/backflip_track``): the shin (knee link) box's lowest
-corner sits by the ankle, 1.6 cm above the floor standing where the mesh is 2.9 cm up; in a deep
-crouch with the shank tilted forward it dips up to 6 mm into the floor behind the heel, a support
-the mesh (and the robot) does not have. A flip policy trained on it pushes off that corner and
-loses it in sim2sim (URDF meshes). ``solve-backflip --shin-clearance`` keeps references off it.
+Known flaw (``docs/environments.md``): the shin (knee link) box's lowest corner sits by the
+ankle, below the mesh; in a deep crouch with the shank tilted forward it dips into the floor behind
+the heel, a support the mesh (and the robot) does not have. A flip policy trained on it pushes off
+that corner and loses it in sim2sim (URDF meshes). ``solve-backflip --shin-clearance`` keeps
+references off it.
 
 Mass: the URDF gives every body an explicit inertial (``inertiafromgeom`` auto uses it), and the
 primitives are added with density 0, so mass, CoM and inertia do not change.

@@ -8,7 +8,8 @@ applied-wrench magnitude ``|F_k|`` measured over that iteration's rollout:
     elif |F_k| > (1 + epsilon) |eta_k|:  eta_k <- (1 + delta) eta_k
     if isSkillLearned:                   eta_k <- (1 - delta) eta_k
 
-Definitions used here (the paper leaves them open; documented in docs/training.md):
+Definitions used here (the paper leaves them open; docs/training.md documents them, with what
+each measured):
 
 - ``|F_k|`` of a phase is the mean, over every (env, control step) of the iteration's rollout whose
   env was in that phase, of the Euclidean norm of the 6-D applied wrench (``extras["assist"]
@@ -19,9 +20,9 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
   ``|F| / |eta|``: the bound shrinks only once even the largest help the agent gives (its 90th
   percentile by default) sits well inside it. An as-needed helper (a warm-started head that is zero
   while the learner is within its tolerance band and saturates when it falls) has a small *mean*
-  and the paper's rule shrinks its bound every iteration, whatever it does when help is needed
-  (measured: ``docs/results/dance_warmstart``); the quantile keeps the bound while help is still
-  needed in more than ``1 - force_quantile`` of the states.
+  and the paper's rule shrinks its bound every iteration, whatever it does when help is needed;
+  the quantile keeps the bound while help is still needed in more than ``1 - force_quantile`` of
+  the states.
 - The force rule runs only for phases visited in the iteration (no sample, no measurement); the
   skill-learned decay runs for every phase, so all bounds go to zero once the skill is learned.
 - ``isSkillLearned`` is ``progress >= skill_learned_progress``, ``progress`` by
@@ -29,20 +30,16 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
 
   - ``"helped"`` (the paper's, and the default): the iteration's mean of
     ``extras["skill_progress"]``, the skill of the helped envs; the default threshold is 0.6 of
-    the target (the paper: 1.0). The decay then *weans*: 20 % per iteration while the helped
-    skill holds 0.6, paused whenever taking help away drops it below, so the bound follows what
-    the pair can do without falling back (measured on dance: 98 -> 20 over 2 M env steps, the
-    helped progress held at 0.60-0.61; with the threshold at 1.0, or with either measure below,
-    the bound never moved);
+    the target (the paper: 1.0). The decay then *weans*: ``delta`` per iteration while the
+    helped skill holds the threshold, paused whenever taking help away drops it below, so the
+    bound follows what the pair can do without falling back;
   - ``"evaluation"``: the target progress of the last evaluation of the motion policy alone during
     training (:mod:`rl.evaluation.alone`: assistance off, fresh envs, the policy's mean action;
     :meth:`SkillTarget.progress`, >= 1 where the task's target is reached), noted by the runner
     (:meth:`AssistCurriculum.note_evaluation`): help until the policy alone has the skill;
   - ``"alone"``: the skill of the alone envs' training episodes (below),
-    ``extras["skill_progress_alone"]``. Measured on dance: with the policy's exploration noise
-    (std 0.55) they fell every time (progress 0.16) while the same policy's mean action survived
-    20-34 % of evaluation episodes: a training measure without help cannot say the skill is
-    learned.
+    ``extras["skill_progress_alone"]``; under exploration noise it reads lower than the policy's
+    mean action would, so it cannot say the skill is learned.
 - A share ``alone_share`` of the envs (fixed env ids) never gets help: their finished episodes feed
   a skill window of their own (``alone_window`` episodes), and they give the motion policy
   episodes on its own while the help is on.
@@ -52,10 +49,8 @@ Definitions used here (the paper leaves them open; documented in docs/training.m
   ``skill_progress >= less_assist_progress`` (0.8, the paper's 80 %).
 - ``anneal_iterations`` N > 0 (default 200, not the paper's; 0 turns it off) caps the bound by a
   fixed schedule, ``eta0 (1 - k / N)`` after the k-th update: the help is gone after N iterations
-  whatever the rules measure. Measured on stand (3 seeds): without it the weaning left 6-8 of the
-  bound for 1-2 M env steps on two seeds (the helped skill under exploration noise stayed below
-  0.6 while the policy alone survived 40-80 %), and reached the target on 1 of 3 seeds in 3 M;
-  with it 3 of 3.
+  whatever the rules measure: the helped skill under exploration noise can stay below the
+  trigger long after the policy alone has the skill.
 - Assistance is switched off (and stays off) the first iteration in which the applied wrench is
   negligible: ``max`` over visited phases of ``|F_k|`` below ``negligible_force_n`` (paper: 0.1 N,
   "insignificant for a 35 kg robot"), or every bound norm ``|eta[p]|`` below it (the applied

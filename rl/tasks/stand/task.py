@@ -51,7 +51,7 @@ PROPRIOCEPTIVE_OBSERVATIONS = ObservationsConfig(
     privileged=ObsGroup(PRIVILEGED),
     critic=ObsGroup(PROPRIOCEPTION + PRIVILEGED + CRITIC_EXTRA),
 )
-"""What the robot's own sensors give the policy (dance, track, backflip; stand before Dec 6)."""
+"""What the robot's own sensors give the policy (dance, track, backflip)."""
 
 BASE_LIN_VEL_ESTIMATE = ObsTerm("base_lin_vel", obs.base_lin_vel_b, noise=0.1)
 """The pelvis velocity with 0.1 m/s of uniform noise: a state estimator's output, as mjlab's and
@@ -62,9 +62,8 @@ VELOCITY_OBSERVATIONS = ObservationsConfig(
     privileged=ObsGroup(PRIVILEGED),
     critic=ObsGroup(PROPRIOCEPTION + PRIVILEGED + CRITIC_EXTRA),
 )
-"""The proprioceptive observations, and the policy also reads the pelvis velocity estimate (stand,
-walk-flat). Stand reads it since Dec 6: without it 80-86 % of 128 fresh envs survived the pushes
-at 2.6-5 M env steps (seed 23), with it 94-100 % of 32 from 1.1 M on (docs/results/stand_judge)."""
+"""The proprioceptive observations, and the policy also reads the pelvis velocity estimate: without
+it stand's policy did not recover from every push (docs/environments.md, "stand")."""
 
 STAND = TaskConfig(
     name="stand",
@@ -97,9 +96,7 @@ STAND = TaskConfig(
     phases=SinglePhaseConfig(names=("stand",)),
     skill=SurvivalSkillConfig(target_survival=0.9, window=256),
     # A 200-step (4 s) horizon instead of PPO's 100, and a lighter update (2 PPO passes and 1
-    # encoder pass per rollout instead of 5 and 5). With these and without the former
-    # feet_contact reward, 3 of 3 seeds reached the target at 1.1-2.3 M env steps, where the old
-    # recipe stopped at 81 % in 3 M on seed 0 (docs/environments.md, "Recipes that learn").
+    # encoder pass per rollout instead of 5 and 5): the recipe that learns (docs/environments.md).
     discount=0.995,
     learning_epochs=2,
     vae_learning_epochs=1,
