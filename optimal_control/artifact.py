@@ -43,6 +43,7 @@ from optimal_control.bounds import (
     PAPER_ETA0,
     BoundRule,
     envelope_per_phase,
+    eta0_per_phase,
     help_causes_per_phase,
     wrench_in_heading_frame,
 )
@@ -543,8 +544,6 @@ def build_artifact(
 ) -> OracleArtifact:
     """Derive eta0 from the novice profile by ``rule`` (on the reference's heading axes, the
     assist action's) and assemble a validated artifact."""
-    from optimal_control.bounds import eta0_per_phase
-
     art = OracleArtifact(
         task=task,
         reference=reference,

@@ -40,7 +40,7 @@ import pinocchio as pin
 
 from optimal_control.bounds import AXIS_NAMES
 from optimal_control.validation import require_finite_fields
-from robots.conventions import quat_xyzw_to_wxyz
+from robots.conventions import pin_to_mj_qpos, pin_to_mj_qvel, quat_xyzw_to_wxyz
 
 
 @dataclass(frozen=True)
@@ -312,8 +312,6 @@ def run_episode(
     """Replay ``art.reference`` in MuJoCo: joint PD on the reference (+ feed-forward torques),
     ``coach`` on the pelvis (None: no help); ``rand`` draws friction, payload and pushes."""
     import mujoco
-
-    from robots.conventions import pin_to_mj_qpos, pin_to_mj_qvel
 
     ref = art.reference
     m = copy.deepcopy(model)

@@ -1,9 +1,10 @@
 """Applying the assist head's output: squash into the bound, random mask, pelvis ``xfrc_applied``.
 
-The contract (``rl_contract.md``): actions[:, 29:35] are the assist head's raw, unbounded output;
-the applied pelvis wrench is F = mask * eta[phase] * tanh(raw), force [N] then torque [Nm] at the
-pelvis centre of mass in the robot's heading frame (the env turns it into MuJoCo's world-frame
-``xfrc_applied`` of the pelvis; the frame is stated in :class:`rl.envs.assist_action.AssistAction`);
+The contract (``docs/environments.md``, "Actions and the assist wrench"): actions[:, 29:35] are
+the assist head's raw, unbounded output; the applied pelvis wrench is
+F = mask * eta[phase] * tanh(raw), force [N] then torque [Nm] at the pelvis centre of mass in the
+robot's heading frame (the env turns it into MuJoCo's world-frame ``xfrc_applied`` of the pelvis;
+the frame is stated in :class:`rl.envs.assist_action.AssistAction`);
 each mask component is 0 with probability zeta, resampled every control step; F = 0 when
 assistance is disabled. The functions here are frame-free (per-axis squash and mask).
 """

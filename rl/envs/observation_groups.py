@@ -20,9 +20,10 @@ TASK_GROUPS = ("policy", "privileged", "critic")
 
 
 class ObservationGroups:
-    """Builds the groups of ``rl_contract.md`` from an :class:`EnvState`: ``policy`` (noisy when
-    the task says so), ``policy_clean``, ``history`` (the last H noisy policy rows, oldest first),
-    ``privileged``, ``critic`` and ``base_lin_vel`` (the VAE's target, (N, 3) [m/s])."""
+    """Builds the groups of ``docs/environments.md`` ("Observations") from an :class:`EnvState`:
+    ``policy`` (noisy when the task says so), ``policy_clean``, ``history`` (the last H noisy policy
+    rows, oldest first), ``privileged``, ``critic`` and ``base_lin_vel`` (the VAE's target,
+    (N, 3) [m/s])."""
 
     def __init__(
         self,

@@ -43,7 +43,7 @@ PARTS = ("physics", "motion", "assist", "observations", "pushes", "randomizer", 
 
 
 class G1VecEnv(VecEnv):
-    """Batched G1 environment implementing ``rsl_rl.env.VecEnv`` (see ``rl_contract.md``).
+    """Batched G1 environment implementing ``rsl_rl.env.VecEnv`` (see ``docs/environments.md``).
 
     Actions (N, 35): [:, :29] motion action a (joint target = stand + ACTION_SCALE_RAD * a),
     [:, 29:] raw assist head output (:class:`rl.envs.assist_action.AssistAction`).
@@ -149,7 +149,7 @@ class G1VecEnv(VecEnv):
         self.task_components.track_alone(window if share > 0 else None)
 
     def get_observations(self) -> TensorDict:
-        """Current observation groups (see ``rl_contract.md``)."""
+        """Current observation groups (see ``docs/environments.md``, "Observations")."""
         return self.observations.obs
 
     def joint_targets_to_actions(self, joint_pos_rad: torch.Tensor) -> torch.Tensor:

@@ -27,7 +27,7 @@ from tensordict import TensorDict
 from rl.envs.config import EnvConfig
 from rl.envs.task_schema import TaskConfig
 from rl.envs.vec_env import G1VecEnv
-from rl.runs.folder import CHECKPOINT_DIR, POLICY_FILE
+from rl.runs.folder import CHECKPOINT_DIR, POLICY_FILE, load_run_config
 from robots import g1
 
 MotionFn = Callable[[G1VecEnv, TensorDict], torch.Tensor]
@@ -159,7 +159,6 @@ def learned_motion(run_dir: str | Path, env: G1VecEnv) -> tuple[MotionFn, str]:
             ".pt) yet: let the run reach its first save_interval, or drop it from the comparison"
         )
     from rl.evaluation.policy import checkpoint_motion_policy
-    from rl.runs.folder import load_run_config
 
     iteration, path = kept[-1]
     actor = checkpoint_motion_policy(load_run_config(run_dir), env, path)

@@ -16,7 +16,8 @@ from rl.envs.vec_env import G1VecEnv
 from rl.tasks.backflip.task import BACKFLIP
 from rl.tasks.dance.task import DANCE_JOINTS, DANCE_PAPER
 from rl.tasks.stand.task import STAND
-from rl.tasks.track.task import DANCE, TRACK
+from rl.tasks.track.command import MotionCommandConfig
+from rl.tasks.track.task import DANCE, TRACK, adapt_to_references
 from rl.tasks.walk.task import WALK, WALK_FLAT, WALK_PAPER
 
 if TYPE_CHECKING:
@@ -119,7 +120,4 @@ def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) 
             "--task track"
         )
     task = dataclasses.replace(task, commands=dataclasses.replace(task.commands, **wanted))
-    from rl.tasks.track.command import MotionCommandConfig
-    from rl.tasks.track.task import adapt_to_references
-
     return adapt_to_references(task) if isinstance(task.commands, MotionCommandConfig) else task

@@ -16,8 +16,9 @@ import mujoco
 import numpy as np
 import torch
 
+from rl.envs.state import quat_multiply
 from rl.tasks.dance.clips import BUILTIN_CLIP, ClipLibrary, _builtin_reference
-from rl.tasks.track.terms import TRACKED_BODIES
+from rl.tasks.track.terms import TRACKED_BODIES, quat_conjugate
 
 
 def load_track_reference(
@@ -133,9 +134,6 @@ def reference_phase_names(refs: list) -> tuple[str, ...]:
 def pitch_increment_rad(q_from: torch.Tensor, q_to: torch.Tensor) -> torch.Tensor:
     """The signed rotation about the body's own y axis from orientations ``q_from`` to ``q_to``
     (M, 4) w x y z, the short way round (M,) [rad]."""
-    from rl.envs.state import quat_multiply
-    from rl.tasks.track.terms import quat_conjugate
-
     rel = quat_multiply(quat_conjugate(q_from), q_to)
     rel = rel * torch.where(rel[:, :1] < 0, -1.0, 1.0)
     sin_half = rel[:, 1:].norm(dim=-1)

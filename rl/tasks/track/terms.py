@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from rl.envs.state import EnvState, quat_multiply, quat_rotate, yaw_rad
+from rl.envs.state import EnvState, quat_multiply, quat_rotate, quat_rotate_inverse, yaw_rad
 from robots import g1
 
 TRACKED_BODIES = (
@@ -106,8 +106,6 @@ def anchor_command(
 ) -> torch.Tensor:
     """Where the reference anchor is, seen from the robot's anchor: its position in the robot
     anchor's frame (N, 3) [m] and its relative orientation as two rotation columns (N, 6)."""
-    from rl.envs.state import quat_rotate_inverse
-
     pos_b = quat_rotate_inverse(anchor_quat_w, ref_anchor_pos_w - anchor_pos_w)
     rel = quat_multiply(quat_conjugate(anchor_quat_w), ref_anchor_quat_w)
     return torch.cat([pos_b, rotation_6d(rel)], dim=-1)
