@@ -76,18 +76,15 @@ RECIPE_FLAGS: tuple[str, ...] = (
     "1",
 )
 """``a2cf-mb train`` flags of both runs: 2 PPO passes and 1 encoder pass per rollout instead of
-dance's 5 and 5 (stand's default). Measured on dance, seed 0, 128 envs: the update's share of an
-iteration 0.49 -> 0.26, so training takes about 0.7x the time; the baseline alone reached 91 %
-survival and 0.17 rad at 1.47 M env steps (the 5 + 5 baselines: the 0.16 rad target at
-1.47-1.72 M; docs/results/skills_learn)."""
+dance's 5 and 5 (stand's default), a shorter update that learns as fast per env step (what it
+measured: docs/training.md, "Why these defaults")."""
 A2CF_VARIANT_FLAGS: tuple[str, ...] = ()
 """``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <oracle>``; the report
 and summary.json print them. Empty: the default curriculum (the help gone after 200 iterations by
 the fixed schedule, sooner where the helped skill holds 0.6 of its target; no force rule; a quarter
 of the envs never helped; the learning rate set by the motion actions' KL; docs/training.md).
-Measured with it (docs/results/a2cf_lifecycle): every stand and dance seed at the target alone,
-the dance warm start on 3 of 3 seeds with the demo's update. With the demo's 400 iterations the
-help is gone halfway: the second half shows the motion policy alone."""
+With the demo's 400 iterations the help is gone halfway: the second half shows the motion policy
+alone."""
 
 
 SEED_SPREAD_FILE = Path(__file__).resolve().parents[1] / "docs/results/track_learn/seed_spread.json"
