@@ -23,9 +23,8 @@ frame gets the floor. The rule's name and parameters are stored in every artifac
 robot's *heading frame* (x forward along the pelvis yaw, z up: :class:`rl.envs.assist_action.
 AssistAction`). :func:`wrench_in_heading_frame` turns ``w`` into the reference's heading frame
 before the rule reads it, so eta0 bounds the axes the learner's head acts on. On world axes, a clip
-that faces another way or turns gets its fx and fy (mx and my) bounds mixed up: the built-in dance
-turned to face +y would get fy 17.0 N and mx 27.7 N m where its heading axes need 38.5 N and
-50.7 N m. For references facing +x (the built-in walk, dance and backflip) both agree (within 1 %).
+that faces another way or turns gets its fx and fy (mx and my) bounds mixed up (an example:
+``docs/oracle.md``). For references facing +x (the built-in walk, dance and backflip) both agree.
 """
 
 from __future__ import annotations

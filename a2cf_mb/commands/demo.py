@@ -14,16 +14,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     parser = subparsers.add_parser(
         "demo",
-        help="the dance end to end on 2 CPU cores (~10 min): oracle, baseline vs warm-started "
-        "A2CF, evaluation alone, report",
+        help="the dance end to end on 2 CPU cores: oracle, baseline vs warm-started A2CF, "
+        "evaluation alone, report",
         description="One task end to end, the dance: solve its oracle (a2cf-mb solve-dance), train "
         "a baseline and an A2CF run whose force agent is warm-started from the oracle, side by "
         "side (one core each; same seed, envs and budget; each evaluates its policy alone during "
         "training), evaluate both motion policies with assistance off in the training physics and "
         "in sim2sim (videos when MUJOCO_GL=egl works), and write OUT/report.md and "
         "OUT/summary.json. The terminal shows each run's iteration, env steps, episode length, "
-        "assist bound and ETA; every stage logs to OUT/logs/. The default budget takes about 10 "
-        "minutes on 2 cores; --iterations 1600 (4.9 M env steps per run) about 40.",
+        "assist bound and ETA; every stage logs to OUT/logs/ (how long it takes: docs/training.md).",
     )
     add_config_arguments(parser, DemoConfig)
     parser.set_defaults(func=run)

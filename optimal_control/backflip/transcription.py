@@ -191,10 +191,8 @@ def build_transcription(model: SagittalModel, cfg: BackflipConfig) -> Transcript
     """Build the NLP of ``cfg``; its parameter p (1,) is the pelvis-wrench weight.
 
     ``cfg.symbolic = "SX"`` (default) inlines everything into one SX graph: slow to build (the
-    exact Hessian of ~140 whole-body RNEAs; ~8 s for the tiny hop, ~30 s for the flip) but fast per
-    IPOPT iteration. ``"MX"`` maps two SX functions (knot rows, interval rows) over the grid: built
-    in ~1 s, but each iteration costs ~3.5x more (measured on the tiny hop: 1.2 s + 62 iterations
-    in 10.9 s, against 7.6 s + 58 iterations in 2.9 s).
+    exact Hessian of ~140 whole-body RNEAs) but fast per IPOPT iteration. ``"MX"`` maps two SX functions (knot rows, interval rows) over the grid: built
+    fast, but each iteration costs more (the times: ``docs/backflip.md``).
     """
     cfg.validate()
     SYM = ca.MX if cfg.symbolic == "MX" else ca.SX  # noqa: N806

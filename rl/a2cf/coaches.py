@@ -1,12 +1,13 @@
 """Model-based coaches: state-dependent pelvis wrenches the force agent is distilled from.
 
 A coach maps the batch :class:`EnvState` to a pelvis wrench (N, 6) [N, Nm] in the assist action's
-heading frame (:class:`rl.envs.assist_action.AssistAction`), bounded by the env's current eta. It assists *as needed*: inside a tolerance band around the reference the
-learner is on its own (zero wrench), beyond it the help grows linearly with the excess (measured on
-stand: a coach that does all the balancing left a policy that survived 5 % of unassisted episodes,
-against 52 % for the baseline; see DESIGN.md). Reference-tracking coaches for walk, dance and
-backflip come from the oracle artifacts (``optimal_control.coach``); :class:`PostureCoach` is the
-built-in one for balance tasks without a time-indexed reference (stand).
+heading frame (:class:`rl.envs.assist_action.AssistAction`), bounded by the env's current eta.
+It assists *as needed*: inside a tolerance band around the reference the learner is on its own
+(zero wrench), beyond it the help grows linearly with the excess: a coach that does all the
+balancing leaves the learner nothing to learn (docs/training.md). Reference-tracking coaches for
+walk, dance and backflip come from the oracle artifacts (``optimal_control.coach``);
+:class:`PostureCoach` is the built-in one for balance tasks without a time-indexed reference
+(stand).
 """
 
 from __future__ import annotations

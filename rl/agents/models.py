@@ -107,9 +107,8 @@ class A2CFActor(MLPModel):
             ``init_std`` for all). The applied wrench is ``eta * tanh(raw)``: a small std makes the
             early wrench small, and Algorithm 1 then shrinks the bound before the head learns.
         kl_motion_only: the KL that sets rsl-rl's adaptive learning rate is the motion actions'
-            only (False: over the joint action, rsl-rl's). Measured (dance, 128 envs, 2 + 1
-            passes): with the oracle's warm-started assist head the joint KL held the learning
-            rate at a median 5.9e-5 against 2.0e-4 without it, before and after the help was gone.
+            only (False: over the joint action, rsl-rl's): a sharp warm-started assist head
+            would otherwise hold the learning rate down (docs/training.md, item 9).
         assist_in_ratio_unhelped: the assist actions stay in PPO's log-probability (its ratio)
             and entropy once assistance is off for good (:attr:`helping` False), rsl-rl's joint
             action. False: only the motion actions count then; the 6 assist actions no longer
