@@ -70,9 +70,9 @@ TRACK = TaskConfig(
     phases=SinglePhaseConfig(names=("track",)),
     skill=MotionSkillConfig(threshold_rad=0.16),
     less_assist_weight=2.0,
-    # PD targets around the reference's joints (q_ref + scale a), not the standing pose: on the
-    # dance, 3 seeds, the joints tracked to a third of a statue's error, where around the standing
-    # pose they stayed at the statue's (docs/results/track_learn); --no-task-actions-around-reference
+    # PD targets around the reference's joints (q_ref + scale a), not the standing pose: around
+    # the standing pose the joints stayed at a statue's error (docs/results/track_learn);
+    # --no-task-actions-around-reference
     actions_around_reference=True,
     evaluation=TrackEvaluationConfig(),
     target=SkillTarget(min_survival=0.9, metric="tracking_score", max_metric=1.0),
