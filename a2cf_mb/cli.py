@@ -63,7 +63,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument(
         "--debug",
         action="store_true",
-        help=f"show the full traceback of any error (as {DEBUG_ENV}=1); give it before COMMAND",
+        help=f"show the full traceback of any error (as {DEBUG_ENV}=1); before COMMAND",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     names = {command_name(m): m for m in COMMAND_MODULES}

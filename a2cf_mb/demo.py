@@ -112,14 +112,13 @@ def seed_spread(env_steps: int) -> dict[str, Any] | None:
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400
-    """PPO iterations of each run (400 x 128 envs x 24 steps = 1.23 M env steps) [-]"""
+    iterations: int = 400  # PPO iterations per run, num_envs x 24 env steps each [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
-    evals: int = 10  # evaluations of each policy alone during training, evenly spaced, the last at the end [-]
+    evals: int = 10  # evaluations of each policy alone, evenly spaced to the end [-]
     eval_envs: int = 32  # envs of the final evaluations, one episode each [-]
-    video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl; skipped with a note otherwise)
-    out: str = "demo"  # output folder: report.md, summary.json, oracle/, runs/, videos/, logs/ [-]
+    video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl)
+    out: str = "demo"  # output folder: report.md, summary.json, runs/, ... [-]
     overwrite: bool = False  # replace the output folder of an earlier demo
 
     def __post_init__(self) -> None:

@@ -51,7 +51,7 @@ class CoachConfig:
     damping_ratio: float = 1.0  # damping ratio of that error dynamics [-]
     feedforward_alpha: float = 1.0  # alpha of the oracle profile used as w_ff [-]
     bound_scale: float = 1.0  # each axis clipped to bound_scale x eta0 of the phase [-]
-    bounded: bool = True  # clip to the bound at all (False: the coach's full wrench) [-]
+    bounded: bool = True  # clip to the bound (False: the coach's full wrench) [-]
     band_position_m: float = 0.0  # tolerance band on the pelvis position error; 0 = none [m]
     band_orientation_rad: float = 0.0  # tolerance band on the orientation error; 0 = none [rad]
 
@@ -280,8 +280,8 @@ class ValidationConfig:
 
     episodes: int = 5  # randomised episodes per variant [-]
     seed: int = 0  # random generator seed [-]
-    decimation: int = 4  # physics steps per coach / target update (dt 0.005 -> 50 Hz) [-]
-    joint_feedforward: bool = True  # add the oracle's alpha = 1 joint torques (qfrc_applied) [-]
+    decimation: int = 4  # physics steps per coach / target update (50 Hz) [-]
+    joint_feedforward: bool = True  # add the oracle's alpha = 1 joint torques [-]
     fall_height_ratio: float = 0.6  # pelvis below this share of the reference height: fall [-]
     fall_tilt_rad: float = 1.0  # pelvis tilted more than this from the reference: fall [rad]
     max_position_error_m: float = 0.5  # pelvis farther than this from the reference: failed [m]

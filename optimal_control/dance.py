@@ -44,7 +44,7 @@ class DanceConfig:
 
     output_fps: float = 50.0  # reference frame rate [1/s]
     ik_dt_s: float = 0.005  # whole-body IK step [s]
-    groove_depth_m: float = 0.07  # CoM drop of the bent-knee stance the dance is danced in [m]
+    groove_depth_m: float = 0.07  # CoM drop of the dance's bent-knee stance [m]
     sway_m: float = 0.06  # lateral CoM excursion of the sway [m]
     bounce_m: float = 0.03  # extra CoM drop at each end of the sway [m]
     squat_depth_m: float = 0.2  # CoM drop of the squat below standing [m]

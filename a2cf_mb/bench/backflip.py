@@ -24,7 +24,7 @@ from a2cf_mb.bench import register_benchmark
 class BackflipBenchConfig:
     """Sizes of the backflip benchmark."""
 
-    tiny: bool = False  # benchmark the tiny hop of the tests instead of the full backflip
+    tiny: bool = False  # the tests' tiny hop instead of the full backflip
     reference_repeats: int = 200  # repeats of the reference evaluation, best kept [-]
     output: str = ""  # optional json file for the figures
 

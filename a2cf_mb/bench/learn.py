@@ -40,12 +40,8 @@ class LearnBenchConfig:
     num_threads: int = 0  # physics threads; 0 = all cores [-]
     eval_interval: int = 40  # iterations between two evaluations of the policy alone [-]
     eval_envs: int = 32  # fresh envs of each evaluation of the policy alone [-]
-    levels: tuple[float, ...] = (
-        1.0,
-        2.0,
-        3.0,
-    )  # terrain levels whose first crossing is reported [-]
-    out: str = "runs/bench_learn"  # folder of the run folders and the comparison [-]
+    levels: tuple[float, ...] = (1.0, 2.0, 3.0)  # terrain levels whose first crossing counts [-]
+    out: str = "runs/bench_learn"  # folder of the runs and the comparison [-]
     output: str = ""  # optional json file for the figures
 
 

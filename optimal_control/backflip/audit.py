@@ -32,7 +32,7 @@ class AuditConfig:
     """Acceptance limits of the audit."""
 
     dynamics_tol: float = 1e-3  # max base-row residual of the inverse dynamics [N, Nm]
-    torque_tol: float = 1e-3  # allowed excess over alpha * effort limit [fraction of effort]
+    torque_tol: float = 1e-3  # allowed excess over alpha * effort limit [effort share]
     integration_tol: float = 1e-5  # max collocation residual [m, rad, m/s, rad/s]
     contact_tol_n: float = 1e-3  # max force outside the cone or off the ground [N]
     sole_speed_tol_m_s: float = 1e-4  # max sole point speed while loaded [m/s]

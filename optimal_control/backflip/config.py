@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from optimal_control.validation import require_finite_fields, require_within
 
@@ -42,71 +42,50 @@ class BackflipConfig:
     jump_duration_s: tuple[float, float, float] = (0.15, 0.5, 0.25)  # Jump (min, max, guess) [s]
     air_duration_s: tuple[float, float, float] = (0.35, 0.8, 0.55)  # Air (min, max, guess) [s]
     land_duration_s: tuple[float, float, float] = (0.3, 0.8, 0.6)  # Land (min, max, guess) [s]
-    turn_rad: float = (
-        -2 * math.pi
-    )  # total base pitch turn: -2 pi = backflip, 0 = vertical jump [rad]
+    turn_rad: float = -2 * math.pi  # pitch turn: -2 pi a backflip, 0 a jump [rad]
     torque_scale: float = 1.0  # alpha: torque limits are alpha * effort limit [-]
-    held_joint_torque_fraction: float = 0.8
-    """joints the TO does not move use this share of alpha [-]"""
+    held_joint_torque_fraction: float = 0.8  # share of alpha for joints the TO does not move [-]
     max_stance_lean_rad: float = 0.35  # |base pitch| bound on the ground (from 0, or -2 pi) [rad]
     friction_coefficient: float = 0.7  # sole friction pyramid coefficient mu [-]
     max_wrench_force_n: float = 400.0  # bound on each pelvis wrench force component [N]
     max_wrench_torque_nm: float = 200.0  # bound on each pelvis wrench torque component [Nm]
-    forbid_wrench: bool = False  # if True the pelvis wrench is fixed to zero (no help allowed)
-    # plan within the simulator's actuator force ranges (robots.g1: 50 N m at the ankles and the
-    # waist roll/pitch, the two-motor linkages) instead of the URDF's effort limits (35 N m there)
-    actuator_effort_limits: bool = False
-    # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2 [1/s]
-    wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)
+    forbid_wrench: bool = False  # the pelvis wrench fixed to zero (no help allowed)
+    # robots.g1's actuator force ranges: 50 N m at the ankles and the waist roll/pitch (the
+    # two-motor linkages), where the URDF's effort limits say 35 N m
+    actuator_effort_limits: bool = False  # plan within the simulator's actuator force ranges
+    # continuation: per stage, the weight of the integral of |w / (100 N, 30 Nm)|^2
+    wrench_weights: tuple[float, ...] = (1e-3, 1e-1, 10.0, 1e3)  # help cost per stage [1/s]
     midpoint_constraints: bool = True  # dynamics and torque limits also at interval midpoints
-    limits_between_knots: bool = field(
-        default=True,
-        metadata={
-            "help": "joint position and speed limits hold on the whole interpolant between knots "
-            "(its Bernstein control points are bounded), not only at the knots"
-        },
-    )
-    quarter_point_torques: bool = field(
-        default=False,
-        metadata={
-            "help": "joint torque limits also at the interval quarter points (with the midpoint "
-            "constraints): the torque peaks that fall between knot and midpoint are bounded"
-        },
-    )
-    torque_refinements: int = field(
-        default=5,
-        metadata={
-            "help": "after the solve, at most this many warm re-solves that tighten the knot and "
-            "midpoint torque bounds of the intervals whose 1 kHz interpolant exceeds the limit "
-            "(same solver, no rebuild) [-]"
-        },
-    )
-    torque_limit_margin: float = field(
-        default=0.005,
-        metadata={
-            "help": "knot and midpoint torques stay within (1 - margin) x alpha x effort limit: "
-            "headroom for the torque between those samples (see --torque-refinements) [-]"
-        },
-    )
+    # joint position and speed limits on the whole interpolant between knots (its Bernstein
+    # control points are bounded), not only at the knots
+    limits_between_knots: bool = True  # joint limits hold between knots too
+    # with the midpoint constraints: the torque peaks between knot and midpoint are bounded
+    quarter_point_torques: bool = False  # torque limits also at interval quarter points
+    # after the solve, warm re-solves (same solver, no rebuild) tighten the knot and midpoint torque
+    # bounds of the intervals whose 1 kHz interpolant exceeds the limit
+    torque_refinements: int = 5  # most re-solves that tighten exceeded torque bounds [-]
+    # knot and midpoint torques stay within (1 - margin) x alpha x effort limit: headroom for the
+    # torque between those samples (see torque_refinements)
+    torque_limit_margin: float = 0.005  # torque headroom below alpha x effort limit [-]
     torque_weight: float = 1e-3  # cost on (tau / tau_max)^2 integrated over time [1/s]
     acceleration_weight: float = 1e-4  # cost on joint accelerations^2 integrated [s^3/rad^2]
     min_pelvis_height_m: float = 0.4  # pelvis origin stays this high throughout [m]
     min_limb_height_m: float = 0.1  # hands and knees stay this high throughout [m]
     # the shins' collision boxes (the training env's primitives, which enclose the URDF meshes)
     # stay min_shin_height_m high at every knot; off: a deep crouch may rest them on the floor
-    shin_clearance: bool = False
+    shin_clearance: bool = False  # shin collision boxes stay min_shin_height_m high
     min_shin_height_m: float = 0.02  # [m]
-    cop_margin: float = 0.15  # heel and toe each carry at least this share of the sole load [-]
+    cop_margin: float = 0.15  # least share of the sole load on heel and on toe [-]
     sole_drift_tolerance_m: float = 0.002  # stance soles stay this close to their placement [m]
     min_air_sole_height_m: float = 0.0  # sole corners above the floor in the air [m]
     final_joint_tolerance_rad: float = 0.1  # landed joints within this of the stand pose [rad]
     max_iter: int = 400  # IPOPT iterations per continuation stage [-]
     tol: float = 1e-6  # IPOPT convergence tolerance [-]
-    symbolic: str = "SX"  # NLP graph: "SX" (fully inlined) or "MX" (mapped SX functions)
+    symbolic: str = "SX"  # NLP graph: "SX" (inlined) or "MX" (mapped SX functions)
     hessian: str = "exact"  # IPOPT Hessian: "exact" or "limited-memory"
     print_level: int = 0  # IPOPT print level (0 silent, 5 verbose) [-]
     warm_start: str = ""  # path of a cached solution (npz) to warm-start from; "" = cold
-    cache_dir: str = "~/.cache/a2cf-mb/backflip"  # solution cache for warm starts; "" = none
+    cache_dir: str = "~/.cache/a2cf-mb/backflip"  # solution cache; "" = none
 
     def __post_init__(self) -> None:
         """Reject NaN / inf values and knot counts out of bounds, naming the field and its flag."""

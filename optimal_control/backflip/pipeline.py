@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -74,15 +74,9 @@ class OutputConfig:
     """What the pipeline writes and how it samples."""
 
     rate_hz: float = 50.0  # artifact sample rate [Hz]
-    use_cache: bool = True  # warm-start from the cached solution of the same problem if any
-    reuse_cached_solution: bool = field(
-        default=True,
-        metadata={
-            "help": "with --use-cache, reuse the cached solution of the same problem once its "
-            "constraints are re-checked (no solver build, no IPOPT) instead of re-solving the "
-            "last stage from it"
-        },
-    )
+    use_cache: bool = True  # warm-start from the cached solution of the same problem
+    # once its constraints are re-checked: no solver build, no IPOPT
+    reuse_cached_solution: bool = True  # with use_cache: reuse it, not re-solve its last stage
     playback: bool = True  # run the MuJoCo playback check
 
     def __post_init__(self) -> None:

@@ -45,7 +45,7 @@ class PlaybackConfig:
     """Options of the MuJoCo playback."""
 
     gain_scales: tuple[float, ...] = (1.0, 3.0)  # G1 table PD gain multipliers, one run each [-]
-    settle_s: float = 1.0  # time simulated after the reference ends, holding the last pose [s]
+    settle_s: float = 1.0  # time simulated after the reference, in its end pose [s]
     upright_cos: float = 0.9  # landed upright: pelvis z axis . world z at least this [-]
     min_pelvis_height_m: float = 0.55  # landed standing: pelvis at least this high [m]
     pitch_tol_rad: float = 0.5  # completed: total pitch within this of the turn [rad]

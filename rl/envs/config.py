@@ -36,16 +36,15 @@ class EnvConfig:
     """Sizes, timing, threads, seed and switches of a :class:`G1VecEnv`."""
 
     num_envs: int = 128  # parallel G1 instances [-]
-    decimation: int = 4  # physics steps per policy step (0.005 s x 4 = 50 Hz policy) [-]
+    decimation: int = 4  # physics steps per policy step (4 x 0.005 s: 50 Hz) [-]
     num_threads: int = 0  # physics threads of the rollout pool; 0 = all cores [-]
-    seed: int = 0  # seed of the env's random generator (and of the run's torch/numpy) [-]
+    seed: int = 0  # seed of the env's generator and of the run's torch/numpy [-]
     history_length: int = 5  # policy observations kept in the "history" group (H) [-]
     clip_actions: float = 100.0  # actions are clipped to +- this before use [-]
     noise: bool = True  # add the observation terms' noise to the noisy groups
-    max_abs_qvel: float = 200.0
-    """divergence guard: rows with a larger |qvel| entry are reset [m/s, rad/s]"""
-    backend: str = "mujoco"  # physics: mujoco (MuJoCo C, CPU) or warp (MuJoCo Warp, gpu extra)
-    device: str = "cpu"  # device of the physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
+    max_abs_qvel: float = 200.0  # reset rows whose |qvel| exceeds this [m/s, rad/s]
+    backend: str = "mujoco"  # physics: mujoco (MuJoCo C, CPU) or warp (gpu extra)
+    device: str = "cpu"  # physics and env tensors: cpu, cuda, cuda:N (mujoco: cpu)
     warp_nconmax_per_world: int = NCONMAX_PER_WORLD  # warp: contacts per world in the pool [-]
     warp_njmax_per_world: int = NJMAX_PER_WORLD  # warp: constraint rows per world [-]
 

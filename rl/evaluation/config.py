@@ -12,7 +12,7 @@ from rl.envs.config import MAX_NUM_ENVS
 class AloneEvalConfig:
     """Evaluations of the motion policy alone during training."""
 
-    interval: int = 50  # iterations between two evaluations (and at the end); 0: none [-]
+    interval: int = 50  # iterations between evaluations (and at the end); 0: none [-]
     num_envs: int = 32  # fresh envs, one episode each [-]
     seed: int = 10_000  # seed of the evaluation envs (never a training seed) [-]
 

@@ -41,11 +41,7 @@ class CompareConfig:
     """Where the comparison goes and which thresholds its table reports."""
 
     out: str = "."  # folder receiving compare.png and compare.json
-    levels: tuple[float, ...] = (
-        1.0,
-        2.0,
-        3.0,
-    )  # terrain levels whose first crossing is reported [-]
+    levels: tuple[float, ...] = (1.0, 2.0, 3.0)  # terrain levels whose first crossing counts [-]
     negligible_force_n: float = 0.1  # applied force counted as negligible (paper: 0.1 N) [N]
 
 
