@@ -115,7 +115,7 @@ class DemoConfig:
     iterations: int = 400  # PPO iterations per run, num_envs x 24 env steps each [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
-    evals: int = 10  # evenly spaced evaluations of each policy alone, to the end [-]
+    evals: int = 10  # evaluations of each policy alone, the last at the end [-]
     eval_envs: int = 32  # envs of the final evaluations, one episode each [-]
     video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl)
     out: str = "demo"  # output folder: report.md, summary.json, runs/, ... [-]
