@@ -52,7 +52,7 @@ def test_bundle_rebuilds_the_observation_and_drives_the_onnx_policy(tmp_path):
     )  # fmt: skip
     run = train(cfg, verbose=False).run_dir
     bundle = json.loads((run / "policy.json").read_text())
-    assert bundle["format"] == "a2cf-mb-policy/2" and bundle["onnx"] == "policy.onnx"
+    assert bundle["format"] == "a2cf-mb-policy/3" and bundle["onnx"] == "policy.onnx"
     assert bundle["control"]["policy_rate_hz"] == 50.0 and len(bundle["joints"]) == 29
     assert bundle["joints"][3]["name"] == "left_knee_joint"
     assert {t["name"] for t in bundle["observation"]["terms"]} == {

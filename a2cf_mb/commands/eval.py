@@ -1,4 +1,4 @@
-"""``a2cf-mb eval RUN_DIR``: roll out a trained motion policy without assistance."""
+"""``a2cf-mb eval RUN_DIR|BUNDLE_FOLDER``: roll out a trained motion policy without assistance."""
 
 from __future__ import annotations
 
@@ -16,16 +16,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "eval",
         help="roll out a run's exported motion policy with assistance off; survival and return",
     )
-    parser.add_argument("run_dir", help="run folder written by `a2cf-mb train`")
+    parser.add_argument(
+        "run_dir",
+        help="run folder written by `a2cf-mb train`, or an exported policy's folder (policy.json, "
+        "policy.onnx): played by the standalone runner a2cf_mb/deploy/run_bundle.py",
+    )
     add_config_arguments(parser, EvalConfig)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluation.policy.evaluate` and print its result."""
+    from a2cf_mb.deploy.evaluate import evaluate_bundle, is_bundle_folder
     from rl.evaluation.policy import EvalConfig, evaluate
 
-    result = evaluate(args.run_dir, config_from_args(EvalConfig, args))
+    cfg = config_from_args(EvalConfig, args)
+    if is_bundle_folder(args.run_dir):
+        print(json.dumps(evaluate_bundle(args.run_dir, cfg), indent=2))
+        return 0
+    result = evaluate(args.run_dir, cfg)
     print(json.dumps(result, indent=2))
     if "sim2sim" in result:
         other = result["sim2sim"]

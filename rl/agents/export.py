@@ -7,9 +7,11 @@ The assist head is left out: at deployment no assistive force exists. The ONNX g
 deployment script needs without reading this code: joint order with default pose, action scale,
 PD gains, effort and position limits; the observation layout term by term (name, columns, unit,
 how to compute it, the noise trained with; the task command block by block, from the task's
-command generator), the history length and order; the control rate.
-Every export is checked against torch with onnxruntime; a test rebuilds the observation from the
-bundle alone and compares it with the env's.
+command generator), the history length and order; the control rate; the physics model, the
+episode's start and end, and a tracking policy's reference (``reference.npz`` beside it), as
+:mod:`rl.agents.bundle` writes them. ``a2cf_mb/deploy/run_bundle.py`` plays a bundle from these
+files alone. Every export is checked against torch with onnxruntime; a test rebuilds the
+observation from the bundle alone and compares it with the env's.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 import torch
 
 from optimal_control.files import atomic_write_json
+from rl.agents.bundle import episode_facts, model_facts, write_reference
 from rl.agents.models import A2CFActor, MotionPolicy
 from rl.runs.folder import REEXPORT_ADVICE, DamagedRunFileError, short_reason
 
@@ -29,8 +32,9 @@ ONNX_OPSET = 18
 """ONNX opset used for the export (rsl-rl's choice)."""
 
 
-BUNDLE_FORMAT = "a2cf-mb-policy/2"
-"""Version of ``policy.json``'s layout."""
+BUNDLE_FORMAT = "a2cf-mb-policy/3"
+"""Version of ``policy.json``'s layout (3: the model, episode and reference facts of
+:mod:`rl.agents.bundle`)."""
 
 OBSERVATION_TERM_DOCS: dict[str, tuple[str, str]] = {
     "base_ang_vel": (
@@ -161,11 +165,14 @@ def deployment_bundle(env: Any) -> dict[str, Any]:
         "observation": {
             "width": layout[-1][1] + layout[-1][2],
             "terms": obs_terms,
+            "noisy": bool(env.task.observations.policy.noisy and env.cfg.noise),
             "history_length": env.cfg.history_length,
             "history": "input `history` = the last history_length observations (this step's "
             "last), concatenated oldest first; at start every slot holds the first observation",
         },
         "clip_actions": env.cfg.clip_actions,
+        "model": model_facts(env),
+        "episode": episode_facts(env),
     }
 
 
@@ -222,6 +229,9 @@ def export_motion_policy(
         "max_abs_error": max_err,
         **(deployment_bundle(env) if env is not None else {}),
     }
+    reference = write_reference(path.parent, env) if env is not None else None
+    if reference is not None:
+        description["reference"] = reference
     atomic_write_json(path.with_suffix(".json"), description)
     return description
 

@@ -109,6 +109,12 @@ class Command(Component, ABC):
         when the task has no reference motion."""
         return None
 
+    def deployment_reference(self) -> tuple[dict[str, np.ndarray], dict[str, Any]] | None:
+        """The reference a deployed policy reads, as its bundle carries it: the arrays of
+        ``reference.npz`` and the ``reference`` section of ``policy.json`` that describes them
+        (:mod:`rl.agents.bundle`); None when the task tracks no reference."""
+        return None
+
     def targets(self) -> dict[str, torch.Tensor]:
         """What the reference asks of the state after the next step beyond the command (which the
         policy observes), for reward and termination terms (``EnvState.targets``; e.g. a tracking

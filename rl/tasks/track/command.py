@@ -254,6 +254,12 @@ class MotionCommand(ClipTrackingCommand):
         cols = [self.motion.contact_bodies.index(b) for b in names]
         return self._link_contact[1][self.frame()][:, cols]
 
+    def deployment_reference(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """The whole motion library as a bundle carries it (:mod:`rl.tasks.track.bundle_reference`)."""
+        from rl.tasks.track.bundle_reference import reference_for_bundle
+
+        return reference_for_bundle(self)
+
     def reference_joint_feedforward(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Joint rates (N, 29) [rad/s] and planned joint torques (N, 29) [N m] of each env's next
         frame (0 torque where the reference has none: a clip)."""
