@@ -297,7 +297,9 @@ def test_walk_eval_and_compare(walk_runs, tmp_path) -> None:
     assert rows["baseline"]["to_negligible_force"] is None
     assert 0.0 <= rows["a2cf"]["final_raw_track_lin_vel_xy"] <= 1.0
     scripted = evaluate(run, EvalConfig(num_envs=2, num_steps=5, scripted=True))
-    assert scripted["task_metrics"]["command_script"] == ["forward", "turn", "sideways", "stop"]
+    assert scripted["task_metrics"]["command_script"] == [
+        "forward", "backward", "sideways", "turn", "stop"
+    ]  # fmt: skip
 
 
 # ------------------------------------------------------------------------------ per command
@@ -358,3 +360,71 @@ def test_scripted_eval_is_refused_for_a_task_without_commands() -> None:
     with pytest.raises(ValueError, match="'stand' has no scripted command sequence"):
         _scripted_evaluation(get_task("stand"))
     assert _scripted_evaluation(WALK).command_script[0].name == "forward"
+
+
+# ------------------------------------------------------------------------- judge per command kind
+def test_pure_draws_keep_one_axis_and_off_they_change_nothing() -> None:
+    """With ``pure_fraction`` 1 every moving draw asks for one thing (forward or back, sideways,
+    or turning on the spot); at 0 the draws are those of the generator without the option."""
+    from rl.tasks.walk.command import VelocityCommandConfig
+
+    pure = VelocityCommandConfig(pure_fraction=1.0, standing_fraction=0.0)
+    gen = pure.build(600, torch.Generator().manual_seed(3))
+    gen.resample(torch.arange(600))
+    nonzero = (gen.command[:, :3] != 0).sum(-1)
+    assert bool((nonzero == 1).all())
+    axes = (gen.command[:, :3] != 0).float().mean(0)  # each axis about a third of the draws
+    assert bool(((axes > 0.25) & (axes < 0.42)).all())
+    plain, off = VelocityCommandConfig(), VelocityCommandConfig(pure_fraction=0.0)
+    a = plain.build(50, torch.Generator().manual_seed(5))
+    b = off.build(50, torch.Generator().manual_seed(5))
+    a.resample(torch.arange(50))
+    b.resample(torch.arange(50))
+    assert torch.equal(a.command, b.command)
+    with pytest.raises(ValueError, match="pure_fraction must be in"):
+        VelocityCommandConfig(pure_fraction=1.5)
+
+
+def test_the_judge_holds_each_kind_and_fails_a_robot_that_stands() -> None:
+    """Env i holds a pure command of kind i mod 6 for its episode (mixed envs draw); the score
+    is the worst kind's error over half of a robot standing still's, so standing still scores 2
+    on every moving kind and a tracker that does what it is told scores 0."""
+    from rl.envs.task_schema import quiet
+    from rl.tasks.registry import make_env
+    from rl.tasks.walk.evaluation import JUDGED_KINDS, command_score
+
+    env = make_env(quiet(WALK_FLAT), 12, num_threads=1)
+    evaluator = WALK_FLAT.evaluation.build(env)
+    active = torch.ones(12, dtype=torch.bool)
+    for _ in range(10):
+        _, _, dones, extras = env.step(torch.zeros(12, env.num_actions))
+        evaluator.on_step(env, active, dones, extras)
+        active &= ~dones.bool()
+    held = env.env_state.command[:, :3]
+    assert torch.allclose(held[1], torch.tensor([0.8, 0.0, 0.0]))  # forward
+    assert torch.allclose(held[2], torch.tensor([-0.4, 0.0, 0.0]))  # backward
+    assert torch.allclose(held[3], torch.tensor([0.0, 0.3, 0.0]))  # sideways, left
+    assert torch.allclose(held[9], torch.tensor([0.0, -0.3, 0.0]))  # sideways, right
+    assert torch.allclose(held[10], torch.tensor([0.0, 0.0, -0.8]))  # turn, clockwise
+    assert torch.equal(held[0], torch.zeros(3)) and torch.equal(held[6], torch.zeros(3))
+    rows = evaluator.per_command()
+    assert [r["command"] for r in rows] == list(JUDGED_KINDS)
+
+    def table(policy_error: float) -> list[dict]:
+        out = []
+        for r in rows:
+            lin, yaw = r["standing_still_lin_vel_error_mps"], r["standing_still_yaw_rate_error_rps"]
+            still = r["command"] == "stop"
+            out.append(dict(r, lin_vel_error_mps=0.05 if still else policy_error * lin,
+                            yaw_rate_error_rps=0.05 if still else policy_error * yaw))  # fmt: skip
+        return out
+
+    assert command_score(table(1.0)) == pytest.approx(2.0)  # standing still: twice the bar
+    assert command_score(table(0.4)) < 1.0  # within half of standing still on every kind
+    # a policy that walks but ignores sideways fails although the others pass
+    ignores = [dict(r, lin_vel_error_mps=r["standing_still_lin_vel_error_mps"])
+               if r["command"] == "sideways" else r for r in table(0.2)]  # fmt: skip
+    assert command_score(ignores) == pytest.approx(2.0)
+    # stop is judged by staying still: drifting at the smallest bar (half of 0.3 m/s) fails
+    drifts = [dict(r, lin_vel_error_mps=0.2) if r["command"] == "stop" else r for r in table(0.2)]
+    assert command_score(drifts) > 1.0

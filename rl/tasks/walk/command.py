@@ -23,6 +23,7 @@ class VelocityCommandConfig:
     ang_vel_z_range_rps: tuple[float, float] = (-1.5, 1.5)  # yaw rate [rad/s]
     resampling_time_range_s: tuple[float, float] = (4.0, 8.0)  # time between two draws [s]
     standing_fraction: float = 0.1  # share of draws that command standing still (zeros) [-]
+    pure_fraction: float = 0.0  # share of moving draws that keep one of vx, vy, yaw rate [-]
     gait_period_s: float = 0.0  # period of the gait clock appended as (sin, cos); 0: no clock [s]
     curriculum_initial_scale: float = 1.0  # ranges start at this fraction of the above [-]
     curriculum_error_mps: float = 0.25  # ranges widen while the mean velocity error is below [m/s]
@@ -43,6 +44,10 @@ class VelocityCommandConfig:
         if not 0.0 <= self.standing_fraction <= 1.0:
             raise ValueError(
                 f"velocity command standing_fraction must be in [0, 1], got {self.standing_fraction}"
+            )
+        if not 0.0 <= self.pure_fraction <= 1.0:
+            raise ValueError(
+                f"velocity command pure_fraction must be in [0, 1], got {self.pure_fraction}"
             )
         if self.gait_period_s < 0:
             raise ValueError(
@@ -93,6 +98,7 @@ class VelocityCommand(Command):
         self._low = torch.tensor([r[0] for r in ranges], device=dev)
         self._high = torch.tensor([r[1] for r in ranges], device=dev)
         self._script: tuple[torch.Tensor, torch.Tensor] | None = None  # (K,) ends [s], (K, 3)
+        self._held: tuple[torch.Tensor, torch.Tensor] | None = None  # (N,) bool, (N, 3)
 
     def follow_script(self, segments: tuple[CommandSegment, ...]) -> None:
         """From now on every env follows ``segments`` in order by its episode time (the last one
@@ -103,6 +109,17 @@ class VelocityCommand(Command):
         commands = torch.tensor([seg.command for seg in segments], device=self.device)
         self._script = (durations.cumsum(0), commands)
         self._scripted()
+
+    def hold(self, held: torch.Tensor, commands: torch.Tensor) -> None:
+        """From now on the envs where ``held`` (N,) is true keep ``commands`` (N, 3) (vx, vy, yaw
+        rate) whatever their draws; the others draw as before (an evaluation per command kind)."""
+        self._held = (held.to(self.device), commands.to(self.device, torch.float32))
+        self._apply_held()
+
+    def _apply_held(self) -> None:
+        if self._held is not None:
+            held, commands = self._held
+            self.command[:, :3] = torch.where(held[:, None], commands, self.command[:, :3])
 
     def segment(self) -> torch.Tensor | None:
         """(N,) long: the script segment each env is in (None without a script)."""
@@ -129,7 +146,13 @@ class VelocityCommand(Command):
         low, high = self._low * self.scale, self._high * self.scale
         draw = low + (high - low) * torch.rand(m, 3, generator=gen, device=self.device)
         standing = torch.rand(m, generator=gen, device=self.device) < self.cfg.standing_fraction
+        if self.cfg.pure_fraction > 0:  # one axis kept: forward or back, sideways, turn in place
+            pure = torch.rand(m, generator=gen, device=self.device) < self.cfg.pure_fraction
+            axis = torch.randint(0, 3, (m,), generator=gen, device=self.device)
+            keep = torch.nn.functional.one_hot(axis, 3).bool() | ~pure[:, None]
+            draw = torch.where(keep, draw, torch.zeros_like(draw))
         self.command[env_ids, :3] = torch.where(standing[:, None], torch.zeros_like(draw), draw)
+        self._apply_held()
         t_low, t_high = self.cfg.resampling_time_range_s
         self.time_left_s[env_ids] = t_low + (t_high - t_low) * torch.rand(
             m, generator=gen, device=self.device

@@ -28,13 +28,23 @@ EVAL_PLOT = "walk_eval.png"
 COMMAND_KINDS = ("stop", "forward", "backward", "sideways", "turn")
 """Rows of the per-command table of random draws (:func:`command_kind`)."""
 
+JUDGED_KINDS = ("stop", "forward", "backward", "sideways", "turn", "mixed")
+"""Rows of the judge per command kind (``WalkEvaluationConfig.judge_kinds``): env i holds a pure
+command of kind ``i mod 6`` for its whole episode; ``mixed`` envs draw as in training."""
+
+PURE_KIND_SCALE = 0.8
+"""A judged forward, backward or turn command is this share of its range's end [-] (sideways:
+the whole end, the range being narrow)."""
+
 DEMO_SCRIPT = (
-    CommandSegment("forward", 5.0, (0.8, 0.0, 0.0)),
-    CommandSegment("turn", 5.0, (0.0, 0.0, 0.8)),
-    CommandSegment("sideways", 5.0, (0.0, 0.3, 0.0)),
-    CommandSegment("stop", 5.0, (0.0, 0.0, 0.0)),
+    CommandSegment("forward", 4.0, (0.8, 0.0, 0.0)),
+    CommandSegment("backward", 4.0, (-0.4, 0.0, 0.0)),
+    CommandSegment("sideways", 4.0, (0.0, 0.3, 0.0)),
+    CommandSegment("turn", 4.0, (0.0, 0.0, 0.8)),
+    CommandSegment("stop", 4.0, (0.0, 0.0, 0.0)),
 )
-"""The scripted sequence of a walk video (``walk_script``): 5 s each, one 20 s episode."""
+"""The scripted sequence of a walk video (``walk_script``): each pure command kind for 4 s, one
+20 s episode."""
 
 
 def command_kind(command: torch.Tensor) -> torch.Tensor:
@@ -46,6 +56,58 @@ def command_kind(command: torch.Tensor) -> torch.Tensor:
     kind = torch.where(dominant == 0, torch.where(vx >= 0, 1, 2), dominant + 2)
     stop = (command[:, :2].norm(dim=-1) < 0.1) & (wz.abs() < 0.1)
     return torch.where(stop, 0, kind)
+
+
+def judged_commands(cfg: Any, num_envs: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each env's judged kind (N,) (index into :data:`JUDGED_KINDS`, env i of kind i mod 6) and
+    its held command (N, 3) from the command ranges of ``cfg`` (a ``VelocityCommandConfig``):
+    forward and backward at :data:`PURE_KIND_SCALE` of the vx range's ends, sideways at the vy
+    range's end, turning at that share of the yaw-rate range's end; sideways and turning change
+    side every other block of six envs. ``mixed`` rows are zeros (they are not held)."""
+    i = torch.arange(num_envs)
+    kind = i % len(JUDGED_KINDS)
+    side = torch.where((i // len(JUDGED_KINDS)) % 2 == 0, 1.0, -1.0)
+    vx_low, vx_high = cfg.lin_vel_x_range_mps
+    vy_end = max(abs(v) for v in cfg.lin_vel_y_range_mps)
+    wz_end = max(abs(v) for v in cfg.ang_vel_z_range_rps)
+    per_kind = torch.tensor(
+        [
+            [0.0, 0.0, 0.0],  # stop
+            [PURE_KIND_SCALE * vx_high, 0.0, 0.0],  # forward
+            [PURE_KIND_SCALE * vx_low, 0.0, 0.0],  # backward
+            [0.0, vy_end, 0.0],  # sideways (x side)
+            [0.0, 0.0, PURE_KIND_SCALE * wz_end],  # turn on the spot (x side)
+            [0.0, 0.0, 0.0],  # mixed: drawn
+        ]
+    )
+    commands = per_kind[kind]
+    commands[:, 1:] *= side[:, None]
+    return kind, commands
+
+
+def command_score(per_command: list[dict[str, Any]]) -> float:
+    """The worst kind's error over its bar (<= 1: every kind tracked; :data:`JUDGED_KINDS`):
+    forward, backward and sideways by the velocity error against half a robot standing still's
+    on the same steps, turning by the yaw-rate error likewise, mixed by both; stop, where
+    standing still scores 0, by each error against the smallest bar of its unit among the moving
+    kinds (a policy that steps in place under "stop" must stay within that)."""
+    rows = {r["command"]: r for r in per_command}
+    lin, yaw = "lin_vel_error_mps", "yaw_rate_error_rps"
+    keys = {"forward": (lin,), "backward": (lin,), "sideways": (lin,), "turn": (yaw,),
+            "mixed": (lin, yaw)}  # fmt: skip
+    ratios = []
+    bars: dict[str, list[float]] = {lin: [], yaw: []}
+    for name, judged in keys.items():
+        if name not in rows:
+            continue
+        for key in judged:
+            bar = 0.5 * rows[name][f"standing_still_{key}"]
+            if bar > 1e-6:  # steps that asked for nothing of this kind are judged by stop's bar
+                bars[key].append(bar)
+                ratios.append(rows[name][key] / bar)
+    if "stop" in rows:
+        ratios += [rows["stop"][key] / min(b) for key, b in bars.items() if b]
+    return float(max(ratios, default=float("inf")))
 
 
 @dataclass(frozen=True)
@@ -60,6 +122,9 @@ class WalkEvaluationConfig:
     """terrain levels to test, cycled over env blocks [-]"""
     command_script: tuple[CommandSegment, ...] = ()
     """every env follows these segments (e.g. DEMO_SCRIPT); empty: the env's random draws"""
+    judge_kinds: bool = False
+    """env i holds a pure command of kind ``JUDGED_KINDS[i mod 6]``, and ``command_score`` judges
+    each kind against a robot standing still (:func:`command_score`); a script overrides it"""
 
     def scripted(self) -> WalkEvaluationConfig:
         """This config with :data:`DEMO_SCRIPT` as every env's commands (``eval --scripted``)."""
@@ -93,9 +158,16 @@ class WalkEvaluator:
             self.tiles = torch.zeros(n, 2, dtype=torch.long)
             self.types = ["flat"] * n
         self.script = cfg.command_script
+        self.env_kind: torch.Tensor | None = None  # (N,) index into JUDGED_KINDS
         if self.script:
             env.command_gen.follow_script(self.script)
-        self.kinds = tuple(seg.name for seg in self.script) or COMMAND_KINDS
+            self.kinds = tuple(seg.name for seg in self.script)
+        elif cfg.judge_kinds:
+            self.env_kind, commands = judged_commands(env.command_gen.cfg, n)
+            env.command_gen.hold(self.env_kind != JUDGED_KINDS.index("mixed"), commands)
+            self.kinds = JUDGED_KINDS
+        else:
+            self.kinds = COMMAND_KINDS
         k = len(self.kinds)
         # per command kind: lin. error, yaw error, standing still's two errors [m/s, rad/s], steps
         self.kind_sums = torch.zeros(k, 5)
@@ -113,8 +185,12 @@ class WalkEvaluator:
         s = env.env_state  # on the env's device: this step's figures are computed there
         lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
         yaw = (s.base_ang_vel_b[:, 2] - s.command[:, 2]).abs()
-        segment = env.command_gen.segment() if self.script else None
-        kind = command_kind(s.command) if segment is None else segment
+        if self.env_kind is not None:
+            kind = self.env_kind.to(s.command.device)
+        elif self.script:
+            kind = env.command_gen.segment()
+        else:
+            kind = command_kind(s.command)
         # this evaluator's buffers are on the host: only the (N, 7) figures cross, in one copy
         figures = torch.stack(
             [lin, yaw, s.command[:, :2].norm(dim=-1), s.command[:, 2].abs(), kind.float(),
@@ -197,6 +273,8 @@ class WalkEvaluator:
             "per_command": self.per_command(),
             "per_terrain_level": table,
         }
+        if self.env_kind is not None:
+            result["command_score"] = command_score(result["per_command"])
         run_dir = Path(run_dir)
         atomic_write_json(run_dir / EVAL_JSON, result)
         _plot(table, result["per_command"], result["survival"], run_dir / EVAL_PLOT)
