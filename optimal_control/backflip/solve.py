@@ -437,9 +437,9 @@ def reuse_solution(
     """The :class:`SolveResult` of a cached solution of ``cfg``'s problem, without a solver.
 
     The cache file holds the solution IPOPT converged to for exactly this NLP (same
-    :func:`problem_key`, at least as tight a tolerance) and its torque cut; re-solving it
-    (41 IPOPT iterations on the flip, after a ~25 s build of the exact-Hessian solver) returns
-    it again to solver tolerance. Here the NLP's constraint functions alone are built (no
+    :func:`problem_key`, at least as tight a tolerance) and its torque cut; re-solving it (after
+    the exact-Hessian solver's build; its cost: ``docs/backflip.md``) returns it again to solver
+    tolerance. Here the NLP's constraint functions alone are built (no
     derivatives) and evaluated at the solution: it is returned if every constraint, with the
     cut re-applied, holds to :data:`REUSE_VIOLATION_TOL`; otherwise None (re-solve it).
     """

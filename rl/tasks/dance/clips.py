@@ -27,8 +27,8 @@ def _cache_dir() -> Path:
 
 
 def _builtin_reference():
-    """The built-in dance reference; its IK solve (~3 s CPU + placo import) is cached on disk,
-    keyed by the dance config and the source of :mod:`optimal_control.dance`."""
+    """The built-in dance reference; its IK solve (placo) is cached on disk, keyed by the dance
+    config and the source of :mod:`optimal_control.dance`."""
     from optimal_control import dance
     from optimal_control.reference import Reference
 
