@@ -37,6 +37,7 @@ import re
 import site
 import sys
 import sysconfig
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -292,6 +293,12 @@ class Command:
         qpos[:, 2] -= self.shift_m
         return qpos, self.ref["qvel"][self.start].copy()
 
+    def reference_qpos(self, env: int) -> np.ndarray:
+        """Robot ``env``'s reference pose (nq,) of the current step's frame, on the floor."""
+        qpos = self.ref["qpos"][self.frame()[env]].astype(np.float64)
+        qpos[2] -= self.shift_m[env]
+        return qpos
+
     def targets(self) -> dict[str, np.ndarray]:
         """The reference frame the current step targets, its links lowered by the floor shift."""
         n = self.frame()
@@ -454,13 +461,19 @@ def run_bundle(
     noise: bool = True,
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0),
     urdf: str | Path | None = None,
+    script: tuple[tuple[float, tuple[float, float, float]], ...] = (),
+    on_step: Callable[[np.ndarray, np.ndarray | None, np.ndarray], None] | None = None,
 ) -> dict[str, Any]:
     """Roll the bundle's policy out on ``num_envs`` robots, one episode each, for ``num_steps``
     policy steps (0: the episode's length cap); survival, episode length and the task's errors
     (frame-weighted means over the steps each robot was still in its episode after).
 
     ``noise``: the observation noise and initial-state noise the policy was trained with;
-    ``velocity``: (vx [m/s], vy [m/s], yaw rate [rad/s]) for a policy that reads one (walk)."""
+    ``velocity``: (vx [m/s], vy [m/s], yaw rate [rad/s]) for a policy that reads one (walk);
+    ``script``: ((duration [s], velocity), ...) in place of it, by episode time (the last held);
+    ``on_step(qpos, reference_qpos, velocity)`` sees robot 0 after each of its steps (a video's
+    frames): its MuJoCo qpos (nq,), its reference pose (nq,) for a tracking policy (else None)
+    and the velocity command (3,)."""
     folder = Path(folder)
     bundle = load_bundle(folder)
     model = build_model(bundle, urdf)
@@ -487,8 +500,14 @@ def run_bundle(
     scored = np.zeros(num_envs)
     last_action = np.zeros((num_envs, len(joints)))
     history = None
+    ends_s = np.cumsum([d for d, _ in script]) if script else None
     for k in range(num_steps):
         command.steps = k
+        if script:
+            segment = min(
+                int(np.searchsorted(ends_s, k * command.dt_s, side="right")), len(script) - 1
+            )
+            command.velocity = np.asarray(script[segment][1], dtype=np.float64)
         r = robots.readings()
         obs = observation(bundle, r, last_action, command.columns(r))
         obs = obs + rng.uniform(-1, 1, obs.shape) * amplitude if amplitude.any() else obs
@@ -501,6 +520,9 @@ def run_bundle(
         if t is not None and bundle["reference"].get("feedforward"):
             base = base + kd / kp * t["joint_vel_rps"] + t["joint_torque_nm"] / kp
         robots.step(base + scale * action, active, decimation)
+        if on_step is not None and active[0]:
+            ghost = command.reference_qpos(0) if command.ref is not None else None
+            on_step(robots.datas[0].qpos.copy(), ghost, command.velocity.copy())
         r = robots.readings()
         failed = failures(bundle, robots, command, r, t)
         ends = np.full(num_envs, k + 1 >= max_steps)
