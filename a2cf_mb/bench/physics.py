@@ -32,20 +32,13 @@ from robots import g1
 class PhysicsBenchConfig:
     """Sizes of the physics-settings benchmark."""
 
-    num_envs: int = 64
-    """robots stepped together [-]"""
-    num_steps: int = 400
-    """physics steps per measurement (2 s at 5 ms) [-]"""
-    repeats: int = 3
-    """measurements per variant, best kept [-]"""
-    num_threads: int = 1
-    """physics threads [-]"""
-    target_std: float = 0.3
-    """std of the random joint targets, in action units [-]"""
-    seed: int = 0
-    """random seed of the targets [-]"""
-    output: str = ""
-    """optional json file for the figures"""
+    num_envs: int = 64  # robots stepped together [-]
+    num_steps: int = 400  # physics steps per measurement (2 s at 5 ms) [-]
+    repeats: int = 3  # measurements per variant, best kept [-]
+    num_threads: int = 1  # physics threads [-]
+    target_std: float = 0.3  # std of the random joint targets, in action units [-]
+    seed: int = 0  # random seed of the targets [-]
+    output: str = ""  # optional json file for the figures
 
 
 def _box_soles(spec: mujoco.MjSpec) -> None:
