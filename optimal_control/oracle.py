@@ -42,6 +42,9 @@ class OracleConfig:
     floor_torque_nm: float = 2.0  # eta0 rule: least bound of a torque axis [N m]
     bound_frames: str = "aided"  # eta0 rule reads frames that need help ("aided") or "all"
     friction_coefficient: float = 0.7  # sole friction pyramid slope [-]
+    # > 0: the reference's phases become time bins of this length, so eta0 (and the coach's clip,
+    # and a tracking run's curriculum) work per bin of the motion; 0: the reference's own phases
+    phase_bin_s: float = 0.0  # eta0 per time bin of this length [s]; 0: per phase
     video: bool = True  # render the reference to reference.mp4 (MuJoCo, EGL)
     video_width: int = 400  # video width [px]
     video_height: int = 300  # video height [px]
@@ -52,6 +55,11 @@ class OracleConfig:
     def __post_init__(self) -> None:
         """Reject NaN / inf values, naming the field and its flag."""
         require_finite_fields(self)
+        if self.phase_bin_s < 0:
+            raise ValueError(
+                f"--phase-bin-s must be >= 0 s (0: the reference's own phases), got "
+                f"{self.phase_bin_s}"
+            )
 
     def rule(self) -> BoundRule:
         """The eta0 rule of this config."""
@@ -102,6 +110,17 @@ def sweep_alphas(
     return profiles, timings
 
 
+def time_bin_phases(ref: Reference, bin_s: float) -> Reference:
+    """``ref`` with its phases replaced by consecutive time bins of ``bin_s`` [s] from its first
+    frame, named ``t<start>s`` (``t0s``, ``t1s``, ... for 1 s bins); the last bin may be shorter."""
+    if bin_s <= 0:
+        raise ValueError(f"time bins need a length > 0 s, got {bin_s}")
+    rel_s = np.asarray(ref.time_s, dtype=float) - float(ref.time_s[0])
+    phase = np.floor(rel_s / bin_s + 1e-6).astype(np.int64)
+    names = tuple(f"t{k * bin_s:g}s" for k in range(int(phase.max()) + 1))
+    return dataclasses.replace(ref, phase=phase, phase_names=names).validate()
+
+
 def no_contact_profile(ref: Reference, cfg: OracleConfig = OracleConfig()) -> WrenchProfile:
     """The upper envelope: the wrench along ``ref`` with both soles off the ground (alpha = 1)."""
     airborne = dataclasses.replace(ref, contacts=np.zeros_like(ref.contacts))
@@ -128,6 +147,8 @@ def solve_reference_oracle(
         raise ValueError("OracleConfig.alphas is empty; give at least one alpha, e.g. 1.0 0.5.")
     cfg = resolve_output(task, cfg)
     folder = Path(cfg.out)
+    if cfg.phase_bin_s > 0:
+        ref = time_bin_phases(ref, cfg.phase_bin_s)
     profiles, timings = sweep_alphas(ref, cfg)
     upper = no_contact_profile(ref, cfg)
     num_phases = len(ref.phase_names)
@@ -193,24 +214,54 @@ def solve_walk(walk_cfg=None, cfg: OracleConfig = OracleConfig()) -> tuple[Oracl
 
 
 def solve_dance(
-    dance_cfg=None, cfg: OracleConfig = OracleConfig(), clip: str = "", clip_cfg=None
+    dance_cfg=None,
+    cfg: OracleConfig = OracleConfig(),
+    clip: str = "",
+    clip_cfg=None,
+    clip_frames: str = "",
 ) -> tuple[OracleArtifact, Path]:
-    """Oracle artifact of the built-in dance, or of a motion clip file when ``clip`` is given."""
+    """Oracle artifact of the built-in dance, or of a motion clip file when ``clip`` is given
+    (frames ``clip_frames`` "A:B" of it: source frames A inclusive to B exclusive, as
+    ``train --reference-frames`` reads them; empty: all)."""
     from optimal_control.dance import DanceConfig, built_in_dance, pose_summary
     from optimal_control.motion_clip import (
         ClipConfig,
-        load_motion_clip_with_report,
         plausibility_problems,
+        read_clip,
+        reference_from_clip_rows,
+    )
+    from optimal_control.reference_sources import (
+        CLIP_FRAMES_FLAG,
+        parse_frames,
+        read_clip_segment,
+        reference_fingerprint,
     )
 
+    frames = parse_frames(clip_frames, CLIP_FRAMES_FLAG)
+    if frames is not None and not clip:
+        raise ValueError(
+            f"{CLIP_FRAMES_FLAG} {clip_frames} takes a segment of a clip: give --clip FILE too "
+            "(the built-in dance has no source frames)"
+        )
     cfg = resolve_output("dance", cfg)
     start = time.perf_counter()
     finish = None
     if clip:
         clip_cfg = clip_cfg or ClipConfig()
-        ref, plausibility = load_motion_clip_with_report(clip, clip_cfg)
+        if frames is None:  # the whole file, read as before segments existed
+            rows, fps = read_clip(clip, clip_cfg)
+        else:  # the segment and its checks as train --reference-frames reads them
+            rows, fps = read_clip_segment(clip, frames, clip_cfg, flag=CLIP_FRAMES_FLAG)
+        ref, plausibility = reference_from_clip_rows(
+            rows, fps, clip_cfg, "dance", source=f"Motion clip '{clip}'"
+        )
         summary = {
-            "source": {"clip": str(clip), "clip_config": dataclasses.asdict(clip_cfg)},
+            "source": {
+                "clip": str(clip),
+                "frames": list(frames) if frames is not None else None,
+                "fingerprint": reference_fingerprint(ref),
+                "clip_config": dataclasses.asdict(clip_cfg),
+            },
             "clip_plausibility": plausibility,
         }
 

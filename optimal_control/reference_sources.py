@@ -64,6 +64,9 @@ MIN_DURATION_S = 1.0
 FRAMES_FLAG = "--reference-frames"
 """The CLI flag whose text :func:`parse_frames` reads."""
 
+CLIP_FRAMES_FLAG = "--clip-frames"
+"""``solve-dance``'s segment flag (the same syntax as :data:`FRAMES_FLAG`)."""
+
 ISAACLAB_G1_JOINT_NAMES: tuple[str, ...] = (
     "left_hip_pitch_joint",
     "right_hip_pitch_joint",
@@ -114,11 +117,11 @@ explains the stored body positions [m]."""
 _FINGERPRINT_DECIMALS = 5  # q rounded to 1e-5 m / rad: float noise of a re-save does not count
 
 
-def parse_frames(text: str) -> tuple[int, int] | None:
+def parse_frames(text: str, flag: str = FRAMES_FLAG) -> tuple[int, int] | None:
     """``"A:B"`` -> ``(A, B)`` (source frames A inclusive to B exclusive); ``""`` -> None.
 
     Raises:
-        ValueError: naming ``--reference-frames`` and the expected form.
+        ValueError: naming ``flag`` (the flag the text came from) and the expected form.
     """
     text = text.strip()
     if not text:
@@ -126,7 +129,7 @@ def parse_frames(text: str) -> tuple[int, int] | None:
     match = re.fullmatch(r"(\d+)\s*:\s*(\d+)", text)
     if match is None or int(match[1]) >= int(match[2]):
         raise ValueError(
-            f"{FRAMES_FLAG} '{text}': expected START:STOP, two whole numbers with START < STOP "
+            f"{flag} '{text}': expected START:STOP, two whole numbers with START < STOP "
             "(source frames, START inclusive, STOP exclusive; e.g. 0:600 for the first 20 s of a "
             "30 fps CSV), or nothing for the whole reference."
         )
@@ -188,6 +191,32 @@ def load_reference(
         frames = _check_frames_form(frames, label)
     if path.is_dir():
         return _artifact_reference(path, frames, name, min_duration_s, label)
+    rows, fps = read_clip_segment(path, frames, cfg, joint_order, min_duration_s)
+    ref, _ = reference_from_clip_rows(
+        rows, fps, cfg, name or path.stem, source=label, phase_names=(TRACK_PHASE,)
+    )
+    return ref
+
+
+def read_clip_segment(
+    path: str | Path,
+    frames: tuple[int, int] | None,
+    cfg: ClipConfig = ClipConfig(),
+    joint_order: str = "auto",
+    min_duration_s: float = MIN_DURATION_S,
+    flag: str = FRAMES_FLAG,
+) -> tuple[np.ndarray, float]:
+    """Rows (T, 36) in our layout and the frame rate [1/s] of frames ``[A, B)`` of a clip file
+    (LAFAN1 G1 CSV, our NPZ, a whole_body_tracking / mjlab NPZ): the segment and the checks of
+    :func:`load_reference`, before the clip pipeline; ``flag`` names the segment's flag in errors.
+
+    Raises:
+        ClipError: one line naming the input, what is wrong and what to do.
+    """
+    path = Path(path)
+    label = f"Reference '{path}'"
+    if frames is not None:
+        frames = _check_frames_form(frames, label, flag)
     if not path.is_file():
         raise ClipError(
             f"{label} does not exist (or is not a file); check --reference: a .csv / .npz clip or "
@@ -195,36 +224,41 @@ def load_reference(
         )
     suffix = path.suffix.lower()
     if suffix == ".npz" and _is_wbt_npz(path):
-        rows, fps = _wbt_rows(path, frames, joint_order, label, cfg.quat_norm_tolerance)
+        rows, fps = _wbt_rows(path, frames, joint_order, label, cfg.quat_norm_tolerance, flag)
     elif suffix in (".csv", ".npz"):
         rows, fps = read_clip(path, cfg)
-        rows = _select(np.asarray(rows, dtype=float), frames, fps, label)
+        rows = _select(np.asarray(rows, dtype=float), frames, fps, label, flag)
     else:
         raise ClipError(
             f"{label}: unknown format '{suffix}'; use a .csv or .npz clip, or an oracle artifact "
             "folder."
         )
-    _check_clip_rows(rows, fps, min_duration_s, label)
-    ref, _ = reference_from_clip_rows(
-        rows, fps, cfg, name or path.stem, source=label, phase_names=(TRACK_PHASE,)
-    )
-    return ref
+    _check_clip_rows(rows, fps, min_duration_s, label, flag)
+    return rows, fps
 
 
-def _check_frames_form(frames: tuple[int, int], label: str) -> tuple[int, int]:
+def _check_frames_form(
+    frames: tuple[int, int], label: str, flag: str = FRAMES_FLAG
+) -> tuple[int, int]:
     try:
         a, b = (int(f) for f in frames)
     except (TypeError, ValueError) as err:
         raise ClipError(f"{label}: frames must be (START, STOP), got {frames!r}.") from err
     if a < 0 or a >= b:
         raise ClipError(
-            f"{label}: {FRAMES_FLAG} {a}:{b} is empty or negative; pick 0 <= START < STOP "
+            f"{label}: {flag} {a}:{b} is empty or negative; pick 0 <= START < STOP "
             "(STOP exclusive)."
         )
     return a, b
 
 
-def _select(array: np.ndarray, frames: tuple[int, int] | None, fps: float, label: str):
+def _select(
+    array: np.ndarray,
+    frames: tuple[int, int] | None,
+    fps: float,
+    label: str,
+    flag: str = FRAMES_FLAG,
+):
     """Frames ``[A, B)`` of ``array`` (T, ...), checked against its T frames."""
     num = int(array.shape[0]) if array.ndim else 0
     if num == 0:
@@ -234,13 +268,15 @@ def _select(array: np.ndarray, frames: tuple[int, int] | None, fps: float, label
     a, b = frames
     if b > num:
         raise ClipError(
-            f"{label}: {FRAMES_FLAG} {a}:{b} is out of range: the source has {num} frames at "
+            f"{label}: {flag} {a}:{b} is out of range: the source has {num} frames at "
             f"{fps:g} fps (0:{num} is all of it); pick STOP <= {num}."
         )
     return array[a:b]
 
 
-def _check_clip_rows(rows: np.ndarray, fps: float, min_duration_s: float, label: str) -> None:
+def _check_clip_rows(
+    rows: np.ndarray, fps: float, min_duration_s: float, label: str, flag: str = FRAMES_FLAG
+) -> None:
     """Layout, length and angle units of clip rows (T, 36); the rest is ``validate_clip``'s."""
     if rows.ndim != 2 or rows.shape[1] != NQ:
         raise ClipError(
@@ -253,13 +289,13 @@ def _check_clip_rows(rows: np.ndarray, fps: float, min_duration_s: float, label:
         row, col = (int(i) for i in np.argwhere(bad)[0])
         raise ClipError(
             f"{label}: NaN/inf at frame {row}, column {col}; repair the clip or leave those "
-            f"frames out with {FRAMES_FLAG}."
+            f"frames out with {flag}."
         )
     span_s = (rows.shape[0] - 1) / fps if np.isfinite(fps) and fps > 0 else np.inf
     if span_s < min_duration_s:
         raise ClipError(
             f"{label}: the reference lasts {span_s:.2f} s ({rows.shape[0]} frames at {fps:g} fps), "
-            f"shorter than {min_duration_s:g} s; give a longer clip or a wider {FRAMES_FLAG}."
+            f"shorter than {min_duration_s:g} s; give a longer clip or a wider {flag}."
         )
     _check_radians(rows[:, 7:], g1.JOINT_NAMES, label)
 
@@ -297,6 +333,7 @@ def _wbt_rows(
     joint_order: str,
     label: str,
     quat_norm_tolerance: float = ClipConfig.quat_norm_tolerance,
+    flag: str = FRAMES_FLAG,
 ) -> tuple[np.ndarray, float]:
     """Clip rows (T, 36) in our layout and the frame rate of a whole_body_tracking / mjlab NPZ."""
     try:
@@ -337,9 +374,9 @@ def _wbt_rows(
             f"{pos.shape[0]}; the arrays must cover the same frames."
         )
     names = _stored_joint_names(npz, joint_pos.shape[1], label)
-    joint_pos = _select(joint_pos, frames, fps, label)
-    pos = _select(pos, frames, fps, label)
-    quat = _select(quat, frames, fps, label)
+    joint_pos = _select(joint_pos, frames, fps, label, flag)
+    pos = _select(pos, frames, fps, label, flag)
+    quat = _select(quat, frames, fps, label, flag)
     for key, arr in (("joint_pos", joint_pos), ("body_pos_w", pos), ("body_quat_w", quat)):
         bad = ~np.isfinite(arr.reshape(arr.shape[0], -1))
         if bad.any():

@@ -1,4 +1,5 @@
-"""``a2cf-mb solve-dance [--clip FILE]``: dance reference -> wrench oracle artifact."""
+"""``a2cf-mb solve-dance [--clip FILE [--clip-frames A:B]]``: dance reference -> wrench oracle
+artifact."""
 
 from __future__ import annotations
 
@@ -23,6 +24,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="motion clip (.csv: 36 columns xyz, quat xyzw, 29 joints; or .npz); "
         "default: the built-in placo choreography",
     )
+    parser.add_argument(
+        "--clip-frames",
+        default="",
+        metavar="A:B",
+        help="segment: the clip's source frames A to B (B exclusive); default: all",
+    )
     add_config_arguments(parser, DanceConfig)
     add_config_arguments(parser, OracleConfig)
     add_config_arguments(parser, ClipConfig, prefix="clip_")
@@ -40,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
         config_from_args(OracleConfig, args),
         clip=args.clip,
         clip_cfg=config_from_args(ClipConfig, args, prefix="clip_"),
+        clip_frames=args.clip_frames,
     )
     print(format_summary(art, folder))
     return 0

@@ -227,19 +227,24 @@ def _report(actor, obs, target, bound, cfg, num_samples) -> dict[str, Any]:
 
 # ------------------------------------------------------------------ the warm start of a run
 def warmstart_eta0(cfg: TrainConfig, task: TaskConfig) -> torch.Tensor | None:
-    """eta0 from the oracle artifact named by ``--warmstart`` (None for a built-in coach).
+    """eta0 from the oracle artifact named by ``--warmstart``, else (in a mode with an assist
+    head) from the run's oracle artifact (``--oracle``); None for neither (a built-in coach).
 
     The artifact's task and phases must be the training task's."""
     from rl.a2cf.coaches import COACHES
+    from rl.a2cf.config import get_mode
 
-    if not cfg.warmstart or cfg.warmstart in COACHES:
+    source = cfg.warmstart if cfg.warmstart not in COACHES else ""
+    if not source and get_mode(cfg.mode).assist:
+        source = cfg.oracle_artifact
+    if not source:
         return None
     from optimal_control.artifact import SUMMARY_FILE, OracleArtifact
 
-    folder = Path(cfg.warmstart)
+    folder = Path(source)
     if not (folder / SUMMARY_FILE).is_file():
         raise ValueError(
-            f"--warmstart '{cfg.warmstart}' is neither a built-in coach ({sorted(COACHES)}) nor an "
+            f"--warmstart '{source}' is neither a built-in coach ({sorted(COACHES)}) nor an "
             f"oracle artifact folder (no {SUMMARY_FILE}): run a2cf-mb solve-* first"
         )
     summary = OracleArtifact.read_summary(folder)

@@ -99,22 +99,44 @@ def describe_tasks(history_length: int = EnvConfig.history_length) -> list[dict[
 
 def resolve_task(cfg: TrainConfig) -> TaskConfig:
     """The run's task: the registered config with the run's overrides applied."""
+    from rl.a2cf.config import get_mode
+
     task = get_task(cfg.task).with_overrides(cfg.task_overrides)
-    return with_references(task, cfg.reference, cfg.reference_frames)
+    # an assist mode's curriculum works per time bin of the clip the oracle solved
+    oracle_phases = bool(cfg.oracle_artifact) and get_mode(cfg.mode).assist
+    return with_references(
+        task, cfg.reference, cfg.reference_frames, cfg.oracle_artifact, oracle_phases
+    )
 
 
-def with_references(task: TaskConfig, references: tuple[str, ...], frames: str) -> TaskConfig:
-    """``task`` tracking ``references`` (segment ``frames``, "A:B"); unchanged when neither is
-    given. A task whose command tracks no reference refuses them in one line."""
-    if not references and not frames:
+def with_references(
+    task: TaskConfig,
+    references: tuple[str, ...],
+    frames: str,
+    oracle: str = "",
+    oracle_phases: bool = False,
+) -> TaskConfig:
+    """``task`` tracking ``references`` (segment ``frames``, "A:B") with the oracle artifact
+    ``oracle`` solved on them (its planned torques; with ``oracle_phases`` its time bins as the
+    task's phases); unchanged when none is given. A task whose command tracks no reference
+    refuses them in one line."""
+    if not references and not frames and not oracle:
         return task
     fields = {f.name for f in dataclasses.fields(task.commands)}
-    wanted = {"sources": tuple(references)} if references else {}
+    wanted: dict[str, Any] = {"sources": tuple(references)} if references else {}
     if frames:
         wanted["frames"] = frames
+    if oracle:
+        wanted.update(oracle=oracle, oracle_phases=oracle_phases)
     missing = sorted(set(wanted) - fields)
     if missing:
-        flag = "--reference" if "sources" in missing else "--reference-frames"
+        flag = (
+            "--reference"
+            if "sources" in missing
+            else "--reference-frames"
+            if "frames" in missing
+            else "--oracle"
+        )
         raise ValueError(
             f"task '{task.name}' takes no {flag}: it tracks no reference motion of a user's; use "
             "--task track"

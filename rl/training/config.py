@@ -131,6 +131,11 @@ class TrainConfig:
         str, ...
     ] = ()  # motions a tracking task tracks, one per episode: clip files (LAFAN1 G1 CSV, NPZ, whole_body_tracking/mjlab motion NPZ), oracle artifact folders or "builtin"; empty: the task's own [-]
     reference_frames: str = ""  # segment A:B of every reference's source frames (A inclusive, B exclusive); empty: all [-]
+    # solve-dance --clip's per-frame QP of the tracked segment (eta0 per 1 s bin), solved once
+    # into <out>/oracle_cache/<fingerprint>/; --warmstart / --coach-source oracle then name it
+    oracle: bool = False  # track: solve (or reuse) the reference's oracle artifact [-]
+    # its torques feed --task-action-feedforward, its eta0 per bin an assist mode's curriculum
+    oracle_artifact: str = ""  # oracle artifact folder the run uses (--oracle fills it) [-]
     task_overrides: dict[str, Any] = field(
         default_factory=dict
     )  # dotted task-field changes, see rl.task_overrides

@@ -96,6 +96,7 @@ from rl.training.distributed import (
     rank_env_config,
     rank_seed,
 )
+from rl.training.oracle import resolve_oracle
 
 CHECKPOINT_FORMAT = 4
 """Version of the checkpoint layout (3: the env state part by part, ``rl.envs.vec_env.PARTS``, the
@@ -623,8 +624,10 @@ def _train_locked(
     check_device_available(start.cfg.device, "--device")
     if start.cfg.env.backend == "warp":
         check_device_available(start.cfg.env.device, "--env-device")
-    # The run folder's config holds the discount and epochs in use, so a resume keeps them.
-    cfg = with_task_defaults(start.cfg, resolve_task(start.cfg))
+    # The run folder's config holds the discount and epochs in use, so a resume keeps them;
+    # and the oracle artifact it uses (--oracle: solved once per clip segment, cached).
+    cfg = resolve_oracle(start.cfg)
+    cfg = with_task_defaults(cfg, resolve_task(cfg))
     checkpoint = start.checkpoint
     if eta0 is None and start.saved_eta0 is not None:
         eta0 = torch.tensor(start.saved_eta0)

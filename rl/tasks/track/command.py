@@ -43,6 +43,9 @@ class MotionCommandConfig:
     uniform_share: float = 0.3  # share of start draws spread uniformly over the bins [-]
     failure_ema: float = 0.001  # per-step weight of new failures in each bin's moving count [-]
     hold_s: float = 0.0  # each reference's first and last frames held still this long [s]
+    # oracle artifact solved on the reference (train --oracle): its planned torques go with it
+    oracle: str = ""  # oracle artifact folder of the (one) reference; empty: none [-]
+    oracle_phases: bool = False  # with oracle: its time bins are the phases (eta0 per bin) [-]
 
     def __post_init__(self) -> None:
         if self.frames:  # checked here; Pinocchio is imported only where a segment is given
@@ -56,6 +59,11 @@ class MotionCommandConfig:
             )
         if self.bin_s <= 0:
             raise ValueError(f"tracking bin_s must be > 0 s, got {self.bin_s}")
+        if self.oracle and len(self.sources) != 1:
+            raise ValueError(
+                f"an oracle artifact goes with one reference, got {len(self.sources)} "
+                "(--oracle solves the oracle of a single --reference)"
+            )
         if not 0.0 <= self.hold_s <= 10.0:
             raise ValueError(f"tracking hold_s must be in [0, 10] s, got {self.hold_s}")
 
@@ -95,6 +103,8 @@ class MotionCommand(ClipTrackingCommand):
         self._bin_clip = torch.tensor(clips, device=dev)
         self._bin_frames = bin_frames
         self.failures = torch.zeros(len(starts), dtype=torch.float64, device=dev)
+        # with an oracle: the applied help per bin, summed over the steps since the last log
+        self._bin_help = torch.zeros(2, len(starts), dtype=torch.float64, device=dev)
         self._ended = torch.zeros(num_envs, dtype=torch.bool, device=dev)
         self._ended_bin = torch.zeros(num_envs, dtype=torch.long, device=dev)
         self.evaluation = False
@@ -105,7 +115,9 @@ class MotionCommand(ClipTrackingCommand):
         from optimal_control.reference_sources import parse_frames
 
         frames = parse_frames(cfg.frames)
-        self.motion = motion_library(cfg.sources, frames, cfg.step_dt_s, cfg.hold_s)
+        self.motion = motion_library(
+            cfg.sources, frames, cfg.step_dt_s, cfg.hold_s, cfg.oracle, cfg.oracle_phases
+        )
         return self.motion.clips
 
     # ------------------------------------------------------------------------------ sampling
@@ -179,6 +191,12 @@ class MotionCommand(ClipTrackingCommand):
             alpha = self.cfg.failure_ema
             self.failures.mul_(1 - alpha).add_(alpha * counts)
         self._ended[:] = False
+        if self.cfg.oracle and not self.evaluation and state.applied_wrench is not None:
+            live = ~self.fresh  # a fresh env's wrench was its last episode's
+            force = state.applied_wrench[live, :3].double().norm(dim=-1)
+            bins = self._bin_of(self.frame(0)[live])
+            self._bin_help[0].index_add_(0, bins, force)
+            self._bin_help[1].index_add_(0, bins, torch.ones_like(force))
         if self._targets and (~self.fresh).any():
             err = (state.joint_pos_rad - self._targets["joint_pos_rad"]).abs().mean(-1)[~self.fresh]
             self._error_sum += float(err.sum())
@@ -199,6 +217,35 @@ class MotionCommand(ClipTrackingCommand):
             targets["body_quat_w"][:, ANCHOR],
         )
         return torch.cat([self._joint[nxt], anchor], dim=-1)
+
+    def bin_names(self) -> list[str]:
+        """Each adaptive-sampling bin's name: its start along its reference, ``t3s`` (``1:t3s``
+        for the second reference where there are several)."""
+        local = (self._bin_start - self._start[self._bin_clip]).tolist()
+        clips = self._bin_clip.tolist()
+        several = len(self.library.names) > 1
+        return [
+            f"{k}:" * several + f"t{f * self.cfg.step_dt_s:g}s"
+            for k, f in zip(clips, local, strict=True)
+        ]
+
+    def log(self) -> dict[str, float]:
+        """The joint tracking error; with an oracle also, per bin, the mean applied help force
+        [N] since the last log and the bin's share of the failures (the adaptive sampler's
+        moving counts): where the clip is helped beside where episodes fail."""
+        out = super().log()
+        if not self.cfg.oracle or self.evaluation:
+            return out
+        names = self.bin_names()
+        total = float(self.failures.sum())
+        share = (self.failures / total if total > 0 else self.failures).tolist()
+        sums, counts = self._bin_help.tolist()
+        for k, name in enumerate(names):
+            if counts[k] > 0:
+                out[f"Oracle/help_force_n/{name}"] = sums[k] / counts[k]
+            out[f"Oracle/failure_share/{name}"] = share[k]
+        self._bin_help.zero_()
+        return out
 
     def targets(self) -> dict[str, torch.Tensor]:
         """The next frame's tracked-link poses and velocities (N, K, 3|4) and joints (N, 29)."""

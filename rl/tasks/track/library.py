@@ -22,10 +22,16 @@ from rl.tasks.track.terms import TRACKED_BODIES, quat_conjugate
 
 
 def load_track_reference(
-    source: str, frames: tuple[int, int] | None, step_dt_s: float | None = None
+    source: str,
+    frames: tuple[int, int] | None,
+    step_dt_s: float | None = None,
+    oracle: str = "",
+    oracle_phases: bool = False,
 ):
     """The :class:`optimal_control.reference.Reference` of one source (and segment), at the
-    policy step ``step_dt_s`` [s] when given (:func:`at_policy_rate`)."""
+    policy step ``step_dt_s`` [s] when given (:func:`at_policy_rate`). ``oracle``: an oracle
+    artifact folder solved on this very motion (``train --oracle``): its planned joint torques go
+    with the reference (:func:`with_oracle`), and with ``oracle_phases`` its phases (time bins)."""
     from optimal_control.reference_sources import MIN_DURATION_S, load_reference
 
     if source == BUILTIN_CLIP:
@@ -48,7 +54,37 @@ def load_track_reference(
             f"reference '{source}' lasts {ref.duration_s:.2f} s, shorter than "
             f"{MIN_DURATION_S:g} s: give a longer clip or a wider --reference-frames segment"
         )
-    return ref if step_dt_s is None else at_policy_rate(ref, step_dt_s)
+    ref = ref if step_dt_s is None else at_policy_rate(ref, step_dt_s)
+    return with_oracle(ref, oracle, oracle_phases) if oracle else ref
+
+
+def with_oracle(ref, folder: str, phases: bool = False):
+    """``ref`` with the joint torques (F, 29) [N m] the oracle artifact in ``folder`` planned it
+    with (the per-frame wrench QP's at full strength, alpha 1: contact-consistent, and with the
+    pelvis wrench where the motion is not doable unaided) in ``extras``, and with ``phases`` the
+    artifact's phases (its time bins, ``solve-dance --phase-bin-s``).
+
+    Raises:
+        ValueError: the artifact was solved on another motion (its reference's fingerprint
+            differs), naming both.
+    """
+    from optimal_control.artifact import OracleArtifact
+    from optimal_control.reference_sources import reference_fingerprint
+
+    art = OracleArtifact.load(folder)
+    solved = at_policy_rate(art.reference, ref.dt)
+    if reference_fingerprint(solved) != reference_fingerprint(ref):
+        raise ValueError(
+            f"oracle artifact {folder} was solved on another motion than the reference "
+            f"'{ref.name}' (fingerprints {reference_fingerprint(solved)} and "
+            f"{reference_fingerprint(ref)}): solve it on the same clip and segment (train "
+            "--oracle does)"
+        )
+    ref.extras[JOINT_TORQUE_EXTRA] = np.asarray(art.profiles[max(art.profiles)].tau_nm, float)
+    if phases:
+        ref.phase = np.asarray(solved.phase, dtype=np.int64)
+        ref.phase_names = tuple(solved.phase_names)
+    return ref
 
 
 JOINT_TORQUE_EXTRA = "joint_torque_nm"
@@ -175,12 +211,18 @@ class MotionLibrary:
         frames: tuple[int, int] | None,
         step_dt_s: float,
         hold_s: float = 0.0,
+        oracle: str = "",
+        oracle_phases: bool = False,
     ) -> MotionLibrary:
         """Load every source (and segment), its ends held ``hold_s`` [s] (:func:`hold_ends`);
-        kinematics of the tracked links at every frame."""
+        kinematics of the tracked links at every frame. ``oracle``, ``oracle_phases``: see
+        :func:`load_track_reference` (one reference only)."""
         if not sources:
             raise ValueError("the tracking task needs at least one reference (--reference PATH)")
-        refs = [hold_ends(load_track_reference(s, frames, step_dt_s), hold_s) for s in sources]
+        refs = [
+            hold_ends(load_track_reference(s, frames, step_dt_s, oracle, oracle_phases), hold_s)
+            for s in sources
+        ]
         clips = ClipLibrary.from_references(tuple(sources), refs, step_dt_s)
         pos, quat, lin, ang = link_kinematics(clips.qpos, clips.qvel)
         qpos = torch.as_tensor(clips.qpos).float()
@@ -245,9 +287,11 @@ def motion_library(
     frames: tuple[int, int] | None,
     step_dt_s: float,
     hold_s: float = 0.0,
+    oracle: str = "",
+    oracle_phases: bool = False,
 ) -> MotionLibrary:
-    """The (per-process cached) library of ``sources``, ``frames`` and ``hold_s``."""
-    key = (tuple(sources), frames, float(step_dt_s), float(hold_s))
+    """The (per-process cached) library of ``sources``, ``frames``, ``hold_s`` and the oracle."""
+    key = (tuple(sources), frames, float(step_dt_s), float(hold_s), oracle, bool(oracle_phases))
     if key not in _LIBRARIES:
-        _LIBRARIES[key] = MotionLibrary.load(key[0], frames, step_dt_s, hold_s)
+        _LIBRARIES[key] = MotionLibrary.load(*key)
     return _LIBRARIES[key]

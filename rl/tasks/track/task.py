@@ -97,7 +97,8 @@ def track_task(
 
 def adapt_to_references(task: TaskConfig) -> TaskConfig:
     """A tracking ``task`` set up for the references it tracks: their phases where they share
-    more than one (an oracle artifact's; the bound row repeated per phase), and the flip setup
+    more than one (an oracle artifact's, or the time bins of the artifact ``train --oracle``
+    solved; the bound row repeated per phase), and the flip setup
     (:func:`rl.tasks.track.flip.for_flips`) where every reference turns over."""
     import math
 
@@ -107,7 +108,12 @@ def adapt_to_references(task: TaskConfig) -> TaskConfig:
     from rl.tasks.track.phases import ReferencePhaseConfig
 
     cmd = task.commands
-    refs = [load_track_reference(s, parse_frames(cmd.frames), cmd.step_dt_s) for s in cmd.sources]
+    refs = [
+        load_track_reference(
+            s, parse_frames(cmd.frames), cmd.step_dt_s, cmd.oracle, cmd.oracle_phases
+        )
+        for s in cmd.sources
+    ]
     names = reference_phase_names(refs)
     if len(names) > 1 and isinstance(task.phases, SinglePhaseConfig):
         row = tuple(max(col) for col in zip(*task.assist_bound, strict=True))
