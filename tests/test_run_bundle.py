@@ -160,3 +160,26 @@ def test_eval_takes_a_bundle_folder(tmp_path, capsys) -> None:
     result = json.loads(capsys.readouterr().out)
     assert result["task"] == "stand" and result["survival_fraction"] == 1.0
     assert result["num_steps"] == 10
+
+
+def test_a_bundle_of_an_older_format_is_made_whole_without_its_checkpoint(tmp_path) -> None:
+    from rl.agents.export import refresh_bundle
+    from rl.tasks.walk.task import WALK_FLAT
+
+    env = make_env(quiet(STAND), 2, num_threads=1)
+    export_policy(env, tmp_path / "stand", np.zeros(29), weight_std=0.0)
+    path = tmp_path / "stand" / "policy.json"
+    bundle = json.loads(path.read_text())
+    old = {k: v for k, v in bundle.items() if k not in ("model", "episode")}
+    old["format"] = "a2cf-mb-policy/2"
+    path.write_text(json.dumps(old))
+    with pytest.raises(runner.BundleError, match="export the policy again"):
+        runner.run_bundle(tmp_path / "stand", num_envs=1, num_steps=2)
+    walk = make_env(quiet(WALK_FLAT), 1, num_threads=1)
+    with pytest.raises(ValueError, match="not this policy"):  # another task's interface
+        refresh_bundle(tmp_path / "stand", walk)
+    walk.close()
+    refresh_bundle(tmp_path / "stand", env)
+    assert json.loads(path.read_text()) == bundle  # the facts as an export writes them
+    env.close()
+    assert runner.run_bundle(tmp_path / "stand", num_envs=1, num_steps=5)["survival_fraction"] == 1

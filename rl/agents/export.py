@@ -16,6 +16,7 @@ observation from the bundle alone and compares it with the env's.
 
 from __future__ import annotations
 
+import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,12 @@ import torch
 from optimal_control.files import atomic_write_json
 from rl.agents.bundle import episode_facts, model_facts, write_reference
 from rl.agents.models import A2CFActor, MotionPolicy
-from rl.runs.folder import REEXPORT_ADVICE, DamagedRunFileError, short_reason
+from rl.runs.folder import (
+    POLICY_BUNDLE_FILE,
+    REEXPORT_ADVICE,
+    DamagedRunFileError,
+    short_reason,
+)
 
 ONNX_OPSET = 18
 """ONNX opset used for the export (rsl-rl's choice)."""
@@ -234,6 +240,63 @@ def export_motion_policy(
         description["reference"] = reference
     atomic_write_json(path.with_suffix(".json"), description)
     return description
+
+
+KEPT_ON_REFRESH = ("onnx", "inputs", "outputs", "max_abs_error")
+"""The keys of ``policy.json`` that describe the ONNX file: :func:`refresh_bundle` keeps them."""
+
+
+def refresh_bundle(folder: str | Path, env: Any) -> dict[str, Any]:
+    """Rewrite ``folder``'s ``policy.json`` with today's deployment facts of ``env`` (an env of
+    the task the policy was trained on) and write its reference, keeping the ONNX file and its
+    description: a bundle exported before format 3 (no model, episode or reference facts) made
+    whole without its checkpoint. Refuses an ``env`` whose policy interface differs from the
+    bundle's (observation terms and columns, history, command blocks, action base, feed-forward
+    table), which would describe another policy. Returns the new ``policy.json``."""
+    from optimal_control.files import atomic_write_json
+
+    path = Path(folder) / POLICY_BUNDLE_FILE
+    old = json.loads(path.read_text())
+    new = deployment_bundle(env)
+    for dotted in ("observation.width", "observation.history_length", "control.policy_rate_hz",
+                   "control.action_base_command_columns"):  # fmt: skip
+        a, b = (_dotted(d, dotted) for d in (old, new))
+        if a != b:
+            raise ValueError(f"{path}: {dotted} is {a}, the env's is {b}: not this policy's task")
+    strip = ("name", "columns", "parts")
+    terms = [[{k: t.get(k) for k in strip} for t in d["observation"]["terms"]] for d in (old, new)]
+    for entries in terms:
+        for t in entries:
+            t["parts"] = [(p["name"], p["columns"]) for p in t["parts"] or []]
+    if terms[0] != terms[1]:
+        raise ValueError(f"{path}: the observation terms differ from the env's: not this policy")
+    old_ff = _dotted(old, "control.action_feedforward.joint_torque_nm")
+    new_ff = _dotted(new, "control.action_feedforward.joint_torque_nm")
+    if (old_ff is None) != (new_ff is None) or (
+        old_ff is not None
+        and (
+            np.shape(old_ff) != np.shape(new_ff) or np.abs(np.subtract(old_ff, new_ff)).max() > 1e-3
+        )
+    ):
+        raise ValueError(
+            f"{path}: the feed-forward torque table differs from the env's reference's: the "
+            "reference is not the one the policy was trained on"
+        )
+    description = {k: old[k] for k in KEPT_ON_REFRESH if k in old} | new
+    reference = write_reference(path.parent, env)
+    if reference is not None:
+        description["reference"] = reference
+    atomic_write_json(path, description)
+    return description
+
+
+def _dotted(tree: dict[str, Any], dotted: str) -> Any:
+    """``tree["a"]["b"]`` for ``"a.b"``; None where a key is missing."""
+    for key in dotted.split("."):
+        if not isinstance(tree, dict) or key not in tree:
+            return None
+        tree = tree[key]
+    return tree
 
 
 def check_onnx_against_torch(
