@@ -7,6 +7,7 @@ which adds its parser and sets ``func`` to a callable taking the parsed namespac
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import pickle
@@ -164,6 +165,10 @@ same run folder (matched by class name so this module does not import the
 solvers or the trainer)."""
 
 
+FULL_DISK_ERRNOS: tuple[int, ...] = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+"""OS errors of a disk or quota that is full, or a file over the shell's size limit."""
+
+
 def is_user_error(exc: BaseException) -> bool:
     """Whether ``exc`` is an input or outcome error to report in one line (see USER_ERRORS), or
     an oracle library missing from a training-only install."""
@@ -179,6 +184,13 @@ def user_message(exc: BaseException) -> str:
     path, the reason and what to check; for a missing oracle library what to install."""
     if isinstance(exc, ModuleNotFoundError) and missing_oracle_library(exc) is not None:
         return oracle_library_message(exc)
+    if isinstance(exc, OSError) and exc.errno in FULL_DISK_ERRNOS:
+        where = f" writing '{exc.filename}'" if exc.filename is not None else ""
+        return (
+            f"{exc.strerror or exc}{where}: the disk is full or a file reached the file-size "
+            "limit (ulimit -f); free space or raise the limit, then run the command again (files "
+            "are written whole, so a run resumes from its last checkpoint)"
+        )
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
         return (
             f"{exc.strerror}: '{exc.filename}' ({type(exc).__name__}); check the path, that it is "
@@ -224,6 +236,41 @@ def unexpected_error_line(exc: BaseException, command: str, saved: Path | None) 
     )
 
 
+class EnvironmentSettingError(ValueError):
+    """An environment variable the toolkit's libraries read holds what they cannot use."""
+
+
+GL_SETTINGS: tuple[str, ...] = (
+    "", "egl", "glfw", "osmesa", "glx", "enable", "enabled", "on", "true", "1",
+    "disable", "disabled", "off", "false", "0",
+)  # fmt: skip
+"""The values of ``MUJOCO_GL`` MuJoCo accepts on Linux (its ``gl_context``)."""
+
+
+def check_gl_setting() -> None:
+    """Refuse, before a command imports MuJoCo, a ``MUJOCO_GL`` that MuJoCo cannot load: one
+    that names no backend, or a backend whose library is missing (``osmesa`` without OSMesa
+    fails inside MuJoCo's import). Only when the variable is set: MuJoCo is then imported here."""
+    wanted = os.environ.get("MUJOCO_GL")
+    if wanted is None or "mujoco" in sys.modules:
+        return
+    if wanted.lower().strip() not in GL_SETTINGS:
+        raise EnvironmentSettingError(
+            f"MUJOCO_GL={wanted} names no GL backend MuJoCo knows: set MUJOCO_GL=egl (offscreen, "
+            "for videos), glfw (with a display) or osmesa, or unset it (training and "
+            "evaluations without a video need none)"
+        )
+    try:
+        import mujoco  # noqa: F401
+    except Exception as err:  # mujoco's import of the backend raises what the GL library does
+        reason = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise EnvironmentSettingError(
+            f"MUJOCO_GL={wanted}: MuJoCo cannot load this GL backend ({type(err).__name__}: "
+            f"{reason}); unset MUJOCO_GL, or set MUJOCO_GL=egl (needs libegl1), or install the "
+            "backend's library (osmesa: libosmesa6)"
+        ) from err
+
+
 def _format_warning(message, category, filename, lineno, line=None) -> str:
     return f"a2cf-mb: warning: {message}\n"
 
@@ -244,6 +291,7 @@ def main(argv: list[str] | None = None) -> int:
     if argv[:1] == ["--debug"]:
         debug, argv = True, argv[1:]
     try:
+        check_gl_setting()
         args = build_parser(argv[0] if argv else None).parse_args(argv)
         command = f"a2cf-mb {args.command}"
         result = args.func(args)

@@ -25,6 +25,7 @@ import dataclasses
 import inspect
 import io
 import math
+import re
 import textwrap
 import tokenize
 import types
@@ -210,8 +211,29 @@ def replace_path(obj: T, dotted: str, value: Any) -> T:
     return dataclasses.replace(obj, **{head: value})
 
 
-def config_from_args(cls: type[T], args: argparse.Namespace, prefix: str = "", **extra: Any) -> T:
-    """Build ``cls`` from parsed flags added by :func:`add_config_arguments` (plus ``extra``)."""
+def renamed_flags(message: str, cls: type, declared_as: str, prefix: str = "") -> str:
+    """``message`` with the flags of ``cls``'s fields as its checks name them (declared under
+    ``declared_as``: ``"eval."`` -> ``--eval-num-envs``) turned into the flags of the command
+    that added them under ``prefix`` (``--num-envs``), so an error names the flag the user
+    typed."""
+    for field in dataclasses.fields(cls):
+        old, new = _flag(declared_as + field.name), _flag(prefix + field.name)
+        message = re.sub(re.escape(old) + r"(?![\w-])", new, message)
+    return message
+
+
+def config_from_args(
+    cls: type[T],
+    args: argparse.Namespace,
+    prefix: str = "",
+    flags_declared_as: str | None = None,
+    **extra: Any,
+) -> T:
+    """Build ``cls`` from parsed flags added by :func:`add_config_arguments` (plus ``extra``).
+
+    ``flags_declared_as``: the prefix under which ``cls``'s checks name its flags when the command
+    adds them under another (``eval-curve``'s ``--num-envs`` is ``train``'s ``--eval-num-envs``):
+    a refused value is then named by the command's own flag (:func:`renamed_flags`)."""
     values: dict[str, Any] = {}
     hints = typing.get_type_hints(cls)
     for field in dataclasses.fields(cls):
@@ -226,4 +248,9 @@ def config_from_args(cls: type[T], args: argparse.Namespace, prefix: str = "", *
                 value = tuple(value)
             values[field.name] = value
     values.update(extra)
-    return cls(**values)
+    if flags_declared_as is None:
+        return cls(**values)
+    try:
+        return cls(**values)
+    except ValueError as err:
+        raise ValueError(renamed_flags(str(err), cls, flags_declared_as, prefix)) from err

@@ -167,7 +167,10 @@ def validate_clip(
     bad = ~np.isfinite(rows)
     if bad.any():
         row, col = (int(i) for i in np.argwhere(bad)[0])
-        raise ClipError(f"{source}: NaN/inf at frame {row}, column {col}.")
+        raise ClipError(
+            f"{source}: NaN/inf at frame {row}, column {col}; repair the clip or leave those "
+            "frames out with --clip-frames A:B."
+        )
     check_base_motion(rows[:, :3], fps, cfg, source)
     norms = np.linalg.norm(rows[:, 3:7], axis=1)
     worst = int(np.argmax(np.abs(norms - 1.0)))
@@ -177,6 +180,7 @@ def validate_clip(
             f"{norms[worst]:.4f}, not 1; is the layout xyz + xyzw + joints?"
         )
     joints = rows[:, 7:]
+    check_radians(joints, g1.JOINT_NAMES, source)  # degrees first: they break every limit
     tol = cfg.joint_limit_tolerance_rad
     below = robot.position_lower_rad - tol - joints
     above = joints - robot.position_upper_rad - tol
@@ -192,6 +196,19 @@ def validate_clip(
     out = rows.copy()
     out[:, 3:7] /= norms[:, None]
     return out
+
+
+def check_radians(joint_pos: np.ndarray, names: tuple[str, ...] | None, label: str) -> None:
+    """Reject joint angles (T, J) beyond 2 pi: no G1 joint turns that far, degrees do (the
+    words of every clip reader, ``train --reference`` included)."""
+    over = np.abs(np.nan_to_num(joint_pos)) > 2 * np.pi
+    if over.any():
+        row, j = (int(i) for i in np.argwhere(over)[0])
+        joint = f"joint '{names[j]}'" if names is not None else f"joint column {j}"
+        raise ClipError(
+            f"{label}: {joint} = {joint_pos[row, j]:.1f} at frame {row} is beyond 2 pi rad: the "
+            "angles look like degrees; convert them to radians."
+        )
 
 
 def check_base_motion(

@@ -43,6 +43,29 @@ class RenderUnavailableError(RuntimeError):
     """Offscreen rendering could not start (no EGL/OSMesa) or video encoding is missing."""
 
 
+def check_offscreen_rendering() -> None:
+    """Raise :class:`RenderUnavailableError` (saying what to install or set) when no video can be
+    made here: imageio missing, or no offscreen GL context for a tiny scene. Cheap (a 16 x 16
+    renderer), so a command asked for a video checks it before its rollout."""
+    try:
+        import imageio.v2  # noqa: F401
+    except ImportError as err:
+        raise RenderUnavailableError(
+            "Video needs imageio and imageio-ffmpeg: pip install imageio imageio-ffmpeg"
+        ) from err
+    _ensure_offscreen_backend()
+    try:
+        renderer = mujoco.Renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16)
+        renderer.render()
+        renderer.close()
+    except Exception as err:  # mujoco raises various GL errors; all mean "no renderer here"
+        raise RenderUnavailableError(
+            f"MuJoCo offscreen rendering failed with MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
+            f"({type(err).__name__}: {str(err).strip().splitlines()[0] if str(err).strip() else ''}"
+            "): set MUJOCO_GL=egl with EGL installed (libegl1), or install OSMesa (libosmesa6)"
+        ) from err
+
+
 @dataclass(frozen=True)
 class RenderConfig:
     """Video options."""

@@ -35,3 +35,32 @@ def check_range(
                 f"{')' if high_open else ']'}"
             )
         raise ValueError(f"{flag} must be {span}, got {value}")
+
+
+def check_pair(
+    value: object, flag: str, low: float, high: float, *, low_open: bool = False
+) -> None:
+    """Refuse a range ``value`` (of ``flag``) that is not two numbers ``LOW HIGH`` with
+    ``LOW <= HIGH``, both in ``[low, high]`` (``(low`` when ``low_open``), NaN included, in one
+    line naming the flag, the form and the bounds."""
+    pair = isinstance(value, tuple | list) and len(value) == 2
+    numbers = pair and all(
+        isinstance(v, int | float) and not isinstance(v, bool)
+        for v in value  # type: ignore[union-attr]
+    )
+    if numbers:
+        first, second = value  # type: ignore[misc]
+        inside = [(low < v if low_open else low <= v) and v <= high for v in (first, second)]
+        if all(inside) and first <= second:
+            return
+    if isinstance(value, tuple | list):
+        shown = " ".join(
+            _number(v) if isinstance(v, int | float) and not isinstance(v, bool) else repr(v)
+            for v in value
+        )
+    else:
+        shown = repr(value)
+    span = f"{'(' if low_open else '['}{_number(low)}, {_number(high)}]"
+    raise ValueError(
+        f"{flag} must be two numbers LOW HIGH in {span} with LOW <= HIGH, got {shown or 'none'}"
+    )

@@ -416,7 +416,7 @@ def test_bad_inputs_give_clear_errors():
         make_env(variant(randomization=dict(payload_body="backpack")), 1)
     with pytest.raises(ValueError, match="payload_mass_range_kg"):
         make_env(variant(randomization=dict(payload_mass_range_kg=(-20.0, 0.0))), 1)
-    with pytest.raises(ValueError, match="interval_range_s"):
+    with pytest.raises(ValueError, match="interval-range-s"):
         variant(pushes=dict(interval_range_s=(0.0, 1.0)))
     with pytest.raises(ValueError, match="already registered"):
         register_task(STAND)

@@ -91,7 +91,8 @@ def test_npz_forms_match_csv(tmp_path, g1_pin):
         ),
         (lambda r: r[:5], "at least 10 are needed"),
         (lambda r: np.concatenate([r[:, :3], 2 * r[:, 3:7], r[:, 7:]], axis=1), "norm 2.0000"),
-        (lambda r: _set(r, 7 + KNEE, 9.0), "joint 'left_knee_joint' = 9.000"),
+        (lambda r: _set(r, 7 + KNEE, 5.0), "joint 'left_knee_joint' = 5.000"),
+        (lambda r: _set(r, 7 + KNEE, 90.0), "look like degrees; convert them to radians"),
     ],
 )
 def test_bad_clips_are_rejected_with_a_clear_error(tmp_path, g1_pin, edit, message):

@@ -316,6 +316,17 @@ def test_eval_of_a_run_without_a_checkpoint_or_onnx_says_what_it_is(capsys, run)
     assert snapshot(run) == before
     shutil.rmtree(run / CHECKPOINT_DIR)
     before = snapshot(run)
+    # a run that logged iterations: its checkpoints are needed back (a resume would restart it)
+    for args in (["eval", *SMALL_EVAL], ["eval", "--no-use-onnx", *SMALL_EVAL]):
+        code, err = run_cli(capsys, *args, run)
+        assert code == 2
+        assert_one_line(err, "has no checkpoint", "logged 2 completed iterations", "restore")
+        assert "--resume" not in err
+    assert snapshot(run) == before
+    # a run killed during its first iteration logged none: a resume starts it again
+    for name in ("metrics.jsonl", METRICS_FILE):
+        (run / name).unlink()
+    before = snapshot(run)
     for args in (["eval", *SMALL_EVAL], ["eval", "--no-use-onnx", *SMALL_EVAL]):
         code, err = run_cli(capsys, *args, run)
         assert code == 2

@@ -37,16 +37,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Call :func:`rl.evaluation.policy.evaluate_checkpoints` and print where the target was reached."""
+    from rl.config_bounds import check_range
     from rl.evaluation.alone import first_reached_once, target_held
     from rl.evaluation.config import AloneEvalConfig
     from rl.evaluation.policy import evaluate_checkpoints
     from rl.runs.folder import CHECKPOINT_EVALS_LOG
 
-    if args.every_iterations < 1:
-        raise ValueError(f"--every-iterations must be >= 1, got {args.every_iterations}")
+    check_range(args.every_iterations, "--every-iterations", 1, 1_000_000_000)
     rows = evaluate_checkpoints(
         args.run_dir,
-        config_from_args(AloneEvalConfig, args),
+        # the config's checks name train's --eval-* flags; these are eval-curve's own
+        config_from_args(AloneEvalConfig, args, flags_declared_as="eval."),
         every_iterations=args.every_iterations,
         iterations=tuple(args.iterations),
     )

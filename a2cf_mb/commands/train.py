@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from a2cf_mb.config_cli import add_config_arguments, config_from_args, given_flags
@@ -85,7 +86,7 @@ def task_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Build the TrainConfig from the flags and call :func:`rl.training.runner.train`."""
-    from rl.runs.folder import load_run_config
+    from rl.runs.folder import load_run_config, logged_iterations
     from rl.tasks.registry import get_task
     from rl.training.config import TrainConfig
     from rl.training.runner import train
@@ -104,7 +105,13 @@ def run(args: argparse.Namespace) -> int:
                 f"not applied: {flags}",
                 file=sys.stderr,
             )
-        iterations = args.iterations if "iterations" in given else saved.iterations
+        # without --iterations: the run's own total, or what it has done where a resume went
+        # past it (a run's config keeps the total it began with)
+        iterations = (
+            args.iterations
+            if "iterations" in given
+            else max(saved.iterations, logged_iterations(Path(args.resume)))
+        )
         cfg = TrainConfig(resume=args.resume, iterations=iterations)
     else:
         cfg = config_from_args(TrainConfig, args, task_overrides=overrides)

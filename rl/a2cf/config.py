@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from rl.config_bounds import check_range
+from rl.config_bounds import MAX_SEED, check_range
 
 
 @dataclass(frozen=True)
@@ -127,10 +127,11 @@ class CurriculumConfig:
         meaningless); ``--curriculum-*`` are its flags."""
         check_range(self.epsilon, "--curriculum-epsilon", 0.0, 1.0, high_open=True)
         check_range(self.delta, "--curriculum-delta", 0.0, 1.0, low_open=True, high_open=True)
-        check_range(self.negligible_force_n, "--curriculum-negligible-force-n", 0.0)
-        # a progress no run reaches (even inf) is a rule that never fires: allowed
-        check_range(self.less_assist_progress, "--curriculum-less-assist-progress", 0.0)
-        check_range(self.skill_learned_progress, "--curriculum-skill-learned-progress", 0.0)
+        check_range(self.negligible_force_n, "--curriculum-negligible-force-n", 0.0, 1e5)
+        # progress is a share (helped, alone) or the target's ratio (evaluation, >= 1 where
+        # reached); no run reaches 100, the value for a rule that never fires
+        check_range(self.less_assist_progress, "--curriculum-less-assist-progress", 0.0, 100.0)
+        check_range(self.skill_learned_progress, "--curriculum-skill-learned-progress", 0.0, 100.0)
         check_range(self.alone_share, "--curriculum-alone-share", 0.0, 1.0, high_open=True)
         check_range(self.alone_window, "--curriculum-alone-window", 1, 1_000_000)
         check_range(
@@ -180,6 +181,14 @@ class WarmStartConfig:
             raise ValueError(f"warm start held_out must be in (0, 1), got {self.held_out}")
         if self.assist_std <= 0:
             raise ValueError(f"warm start assist_std must be > 0, got {self.assist_std}")
+        # upper bounds: what a warm start of minutes could use (``--distill-*`` are the flags)
+        check_range(self.rounds, "--distill-rounds", 1, 1000)
+        check_range(self.steps_per_round, "--distill-steps-per-round", 1, 10_000_000)
+        check_range(self.epochs, "--distill-epochs", 1, 100_000)
+        check_range(self.batch_size, "--distill-batch-size", 1, 2**24)
+        check_range(self.learning_rate, "--distill-learning-rate", 0.0, 1.0, low_open=True)
+        check_range(self.assist_std, "--distill-assist-std", 0.0, 100.0, low_open=True)
+        check_range(self.seed, "--distill-seed", 0, MAX_SEED)
 
 
 @dataclass(frozen=True)

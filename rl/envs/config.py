@@ -55,8 +55,8 @@ class EnvConfig:
         check_range(self.num_threads, "--env-num-threads", 0, 4096)
         check_range(self.seed, "--env-seed", 0, MAX_SEED)
         check_range(self.history_length, "--env-history-length", 1, 1000)
-        check_range(self.clip_actions, "--env-clip-actions", 0.0, low_open=True)
-        check_range(self.max_abs_qvel, "--env-max-abs-qvel", 0.0, low_open=True)
+        check_range(self.clip_actions, "--env-clip-actions", 0.0, 1e4, low_open=True)
+        check_range(self.max_abs_qvel, "--env-max-abs-qvel", 0.0, 1e6, low_open=True)
         check_range(self.warp_nconmax_per_world, "--env-warp-nconmax-per-world", 1, 100_000)
         check_range(self.warp_njmax_per_world, "--env-warp-njmax-per-world", 1, 1_000_000)
         if self.backend not in BACKENDS:

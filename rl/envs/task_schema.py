@@ -14,6 +14,7 @@ import these names from here.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +22,7 @@ from typing import Any
 import mujoco
 import torch
 
+from rl.config_bounds import check_pair, check_range
 from rl.envs.components import NoCommandConfig, SinglePhaseConfig, SurvivalSkillConfig
 from rl.envs.terms import ObsGroup, RewardTerm, TerminationTerm, check_unique
 
@@ -29,6 +31,10 @@ ResetStateFn = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Generat
 state of resetting envs in place (e.g. start from a reference frame)."""
 TerrainFn = Callable[[mujoco.MjSpec], None]
 """``fn(spec)``: add terrain geoms to the physics spec (contype 1, conaffinity 3 like the floor)."""
+
+MAX_PUSH_MPS = 20.0
+"""Largest push velocity a task accepts: a kick of more than 20 m/s is no disturbance a robot
+could meet [m/s]."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +58,13 @@ class InitialStateConfig:
     random_yaw: bool = True  # uniform random base heading
     reset_state: ResetStateFn | None = None  # task hook applied after the noise; None: none
 
+    def __post_init__(self) -> None:
+        """Bound the noise where it is declared; ``--task-initial-state-*`` are its flags."""
+        check_range(
+            self.joint_pos_noise_rad, "--task-initial-state-joint-pos-noise-rad", 0.0, math.pi
+        )
+        check_range(self.base_vel_noise, "--task-initial-state-base-vel-noise", 0.0, 10.0)
+
 
 @dataclass(frozen=True)
 class PushConfig:
@@ -66,20 +79,16 @@ class PushConfig:
     """share of training kicks turned to push the robot backwards (the kick's forward component in the robot's heading frame made negative; evaluations never): stand's and walk-flat's falls are backward kicks [-]"""
 
     def __post_init__(self) -> None:
-        low, high = self.interval_range_s
-        if not 0 < low <= high:
-            raise ValueError(
-                f"push interval_range_s must be (low, high) with 0 < low <= high, got {(low, high)}"
-            )
-        if not 0.0 <= self.train_backward_share <= 1.0:
-            raise ValueError(
-                f"push train_backward_share must be in [0, 1], got {self.train_backward_share}"
-            )
-        if self.velocity_xy_mps < 0 or self.train_velocity_xy_mps < 0:
-            raise ValueError(
-                f"push velocities must be >= 0 m/s, got velocity_xy_mps {self.velocity_xy_mps} "
-                f"and train_velocity_xy_mps {self.train_velocity_xy_mps}"
-            )
+        """Bound every field where it is declared; ``--task-pushes-*`` are its flags."""
+        # an interval is a count of control steps: an hour is more than any episode
+        check_pair(
+            self.interval_range_s, "--task-pushes-interval-range-s", 0.0, 3600.0, low_open=True
+        )
+        check_range(self.train_backward_share, "--task-pushes-train-backward-share", 0.0, 1.0)
+        check_range(self.velocity_xy_mps, "--task-pushes-velocity-xy-mps", 0.0, MAX_PUSH_MPS)
+        check_range(
+            self.train_velocity_xy_mps, "--task-pushes-train-velocity-xy-mps", 0.0, MAX_PUSH_MPS
+        )
 
 
 @dataclass(frozen=True)
@@ -94,14 +103,12 @@ class RandomizationConfig:
     model_groups: int = 0  # 0: one model copy per env, redrawn at each reset; G > 0: G copies drawn once, env i uses copy i % G
 
     def __post_init__(self) -> None:
-        for name in ("friction_range", "payload_mass_range_kg", "com_offset_range_m"):
-            low, high = getattr(self, name)
-            if low > high:
-                raise ValueError(f"randomization {name} must be (low, high), got {(low, high)}")
-        if self.friction_range[0] <= 0:
-            raise ValueError(f"randomization friction_range must be > 0, got {self.friction_range}")
-        if self.model_groups < 0:
-            raise ValueError(f"randomization model_groups must be >= 0, got {self.model_groups}")
+        """Bound every field where it is declared; ``--task-randomization-*`` are its flags."""
+        flag = "--task-randomization-"
+        check_pair(self.friction_range, flag + "friction-range", 0.0, 10.0, low_open=True)
+        check_pair(self.payload_mass_range_kg, flag + "payload-mass-range-kg", -100.0, 100.0)
+        check_pair(self.com_offset_range_m, flag + "com-offset-range-m", -1.0, 1.0)
+        check_range(self.model_groups, flag + "model-groups", 0, 1_000_000)
 
 
 @dataclass(frozen=True)
@@ -126,6 +133,11 @@ class SkillTarget:
     min_survival: float = 0.9  # share of evaluation episodes that must not fail [-]
     metric: str = ""  # task evaluator metric bounded above (e.g. skill_error_rad); empty: none
     max_metric: float = 0.0  # the metric's upper bound, in its unit
+
+    def __post_init__(self) -> None:
+        """A survival share is a probability; ``--task-target-*`` are its flags."""
+        check_range(self.min_survival, "--task-target-min-survival", 0.0, 1.0)
+        check_range(self.max_metric, "--task-target-max-metric", 0.0, 1e6)
 
     def reached(self, result: dict[str, Any]) -> bool:
         """Whether an evaluation result (``survival_fraction``, ``task_metrics``) meets it."""
@@ -220,8 +232,11 @@ class TaskConfig:
                 f"task learning_epochs must be >= 1 and vae_learning_epochs >= 0, got "
                 f"{self.learning_epochs} and {self.vae_learning_epochs}"
             )
-        if self.episode_length_s <= 0:
-            raise ValueError(f"task episode_length_s must be > 0 s, got {self.episode_length_s}")
+        check_range(self.learning_epochs, "--task-learning-epochs", 1, 1000)
+        check_range(self.vae_learning_epochs, "--task-vae-learning-epochs", 0, 1000)
+        # a day of control steps still fits the int32 step counters
+        check_range(self.episode_length_s, "--task-episode-length-s", 0.0, 86_400.0, low_open=True)
+        check_range(self.less_assist_weight, "--task-less-assist-weight", 0.0, 1000.0)
         rows = self.assist_bound
         if len(rows) != len(self.phase_names) or any(len(r) != 6 for r in rows):
             raise ValueError(

@@ -18,6 +18,6 @@ class AloneEvalConfig:
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared; ``--eval-*`` are its flags."""
-        check_range(self.interval, "--eval-interval", 0)
+        check_range(self.interval, "--eval-interval", 0, 1_000_000_000)
         check_range(self.num_envs, "--eval-num-envs", 1, MAX_NUM_ENVS)
         check_range(self.seed, "--eval-seed", 0, MAX_SEED)

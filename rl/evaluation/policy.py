@@ -22,6 +22,8 @@ from optimal_control.files import atomic_write_json
 from rl.a2cf.config import get_mode
 from rl.a2cf.modes import MotionOnlyEnv
 from rl.agents.models import ASSIST_ACTION_DIM
+from rl.config_bounds import MAX_SEED, check_range
+from rl.envs.config import MAX_NUM_ENVS
 from rl.envs.vec_env import G1VecEnv
 from rl.evaluation.alone import rollout_alone
 from rl.evaluation.config import AloneEvalConfig
@@ -30,17 +32,20 @@ from rl.runs.folder import (
     CHECKPOINT_EVALS_LOG,
     EVAL_FILE,
     EVALS_DIR,
-    LAST_CHECKPOINT,
     POLICY_FILE,
     REEXPORT_ADVICE,
     load_checkpoint,
     load_run_config,
     newest_readable_checkpoint,
+    no_checkpoint_error,
     read_run_jsonl,
     require_same_observations,
 )
 from rl.tasks.registry import resolve_task
 from rl.training.config import rsl_rl_config, with_task_defaults
+
+MAX_EVAL_STEPS = 10_000_000
+"""Most control steps one ``eval`` rolls out (over two days of robot time at 50 Hz) [-]."""
 
 
 @dataclass(frozen=True)
@@ -63,15 +68,16 @@ class EvalConfig:
     each of forward, turn, sideways, stop), scored per segment; a video then shows the sequence"""
 
     def __post_init__(self) -> None:
-        if self.num_envs < 1:
-            raise ValueError(f"eval num_envs must be >= 1, got {self.num_envs}")
+        """Bound every field where it is declared; ``eval``'s flags have no prefix."""
+        check_range(self.num_envs, "--num-envs", 1, MAX_NUM_ENVS)
+        check_range(self.num_steps, "--num-steps", 0, MAX_EVAL_STEPS)
+        check_range(self.seed, "--seed", 0, MAX_SEED)
+        # the video's length is rolled out by env 0 alone: ten minutes is a long film already
+        check_range(self.video_min_s, "--video-min-s", 0.0, 600.0)
+        check_range(self.video_ghost_side_m, "--video-ghost-side-m", -10.0, 10.0)
         if not 0.01 <= self.video_speed <= 4.0:
             raise ValueError(
                 f"eval --video-speed must be in [0.01, 4] (1: real time), got {self.video_speed}"
-            )
-        if self.num_steps < 0:
-            raise ValueError(
-                f"eval num_steps must be >= 0 (0: one full episode), got {self.num_steps}"
             )
 
 
@@ -95,11 +101,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     # The policy's files are checked before the env is built: a damaged one is one line at once.
     checkpoint = newest_readable_checkpoint(run_dir, "a2cf-mb eval", "evaluating")
     if checkpoint is None:
-        raise FileNotFoundError(
-            f"{run_dir} has no checkpoint ({CHECKPOINT_DIR}/{LAST_CHECKPOINT}): its training "
-            f"stopped during its first iteration; continue it with `a2cf-mb train --resume "
-            f"{run_dir}`, or delete the folder"
-        )
+        raise no_checkpoint_error(run_dir)
     require_same_observations(run_dir, resolve_task(train_cfg))
     if cfg.use_onnx:
         _require_exported_policy(run_dir, train_cfg.export_onnx)
@@ -117,6 +119,8 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
             _require_exported_policy(run_dir, train_cfg.export_onnx)
             OnnxMotionPolicy(run_dir / POLICY_FILE)
         load_bundle(run_dir, resolve_task(train_cfg))
+    if cfg.video:  # a video that cannot be made is one line before the rollout
+        _check_video(cfg.video)
     env_cfg = dataclasses.replace(train_cfg.env, num_envs=cfg.num_envs, seed=cfg.seed)
     task = resolve_task(train_cfg)
     if cfg.scripted:
@@ -158,6 +162,8 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
     if cfg.video:
         from optimal_control.render import RenderUnavailableError
 
+        # the figures are kept whatever the video does; written again with the video's path
+        atomic_write_json(run_dir / EVAL_FILE, result)
         try:
             result["video"] = str(
                 _render_qpos(
@@ -174,8 +180,32 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         except RenderUnavailableError as err:  # no GL / no encoder: the metrics still count
             result["video_note"] = f"no video: {err}"
             warnings.warn(f"eval: {result['video_note']}", stacklevel=2)
+        except Exception as err:  # a GL or encoder failure mid-video: the metrics still count
+            result["video_note"] = f"no video: rendering failed ({type(err).__name__}: {err})"
+            warnings.warn(f"eval: {result['video_note']}", stacklevel=2)
     atomic_write_json(run_dir / EVAL_FILE, result)
     return result
+
+
+def _check_video(video: str) -> None:
+    """Refuse, in one line, a ``--video`` path that cannot be written (a folder, a file as its
+    folder) or a machine that cannot render (no offscreen GL, no encoder)."""
+    from optimal_control.render import RenderUnavailableError, check_offscreen_rendering
+
+    path = Path(video)
+    if path.is_dir():
+        raise IsADirectoryError(
+            f"--video {video} is a folder: give the video's file name, e.g. {path / 'eval.mp4'}"
+        )
+    parent = next((p for p in path.parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise NotADirectoryError(
+            f"--video {video}: {parent} is a file, not a folder: give a path in a folder"
+        )
+    try:
+        check_offscreen_rendering()
+    except RenderUnavailableError as err:
+        raise ValueError(f"--video {video}: {err}; or evaluate without --video") from err
 
 
 def _scripted_evaluation(task: Any) -> Any:

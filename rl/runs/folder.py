@@ -177,8 +177,12 @@ class RunFolderLock:
             if not self.create:
                 raise FileNotFoundError(errno.ENOENT, "No such run folder", str(self.run_dir))
             missing = [p for p in (self.run_dir, *self.run_dir.parents) if not p.exists()]
-            self.run_dir.mkdir(parents=True, exist_ok=True)
             self._created = missing
+            try:
+                self.run_dir.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                self.release()  # the parents made before the failure go too
+                raise
         me = LockHolder(
             pid=os.getpid(),
             host=socket.gethostname(),
@@ -211,14 +215,16 @@ class RunFolderLock:
         for folder in self._created:
             try:
                 folder.rmdir()  # only succeeds when empty
-            except OSError:
+            except OSError as err:
+                if err.errno in (errno.ENOENT, errno.ENAMETOOLONG):
+                    continue  # never made: the mkdir failed before it
                 break
         self._created = []
 
     def _take_over_if_stale(self) -> None:
         """Remove the existing lock when its holder is gone, else raise RunFolderBusyError."""
         try:
-            text = self.path.read_text()
+            text = self.path.read_bytes()  # junk too: compared, never decoded
             age_s = time.time() - self.path.stat().st_mtime
         except FileNotFoundError:
             return  # released meanwhile: try to create it again
@@ -238,7 +244,7 @@ class RunFolderLock:
             os.rename(self.path, aside)
         except FileNotFoundError:
             return
-        if aside.read_text() != text:
+        if aside.read_bytes() != text:
             with contextlib.suppress(FileExistsError):
                 os.link(aside, self.path)  # put the other process's fresh lock back
             aside.unlink()
@@ -389,6 +395,17 @@ def read_config_file(run_dir: str | Path, sections: tuple[str, ...] = ("train",)
     a missing one of ``sections``."""
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
+        held = [
+            name
+            for name in (CHECKPOINT_DIR, METRICS_LOG, METRICS_FILE, POLICY_FILE)
+            if (Path(run_dir) / name).exists()
+        ]
+        if held:  # a run's files without its config: nothing can rebuild its env or networks
+            raise FileNotFoundError(
+                f"{path} not found, but '{run_dir}' holds a run's files ({', '.join(held)}): "
+                f"restore {CONFIG_FILE} from a backup (no command can read the run without "
+                "it), or start a new run"
+            )
         raise FileNotFoundError(
             f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
         )
@@ -484,7 +501,9 @@ def recipe_changes(run_dir: str | Path, task: Any) -> list[str]:
     except (DamagedRunFileError, FileNotFoundError):
         return []
     before, now = _recipe_leaves(saved), _recipe_leaves(task.to_json_dict())
-    changes = [f"{k}: {before[k]!r} -> {now[k]!r}" for k in before if k in now and before[k] != now[k]]
+    changes = [
+        f"{k}: {before[k]!r} -> {now[k]!r}" for k in before if k in now and before[k] != now[k]
+    ]
     changes += [f"{k}: removed" for k in before if k not in now and before[k] == "present"]
     changes += [f"{k}: added" for k in now if k not in before and now[k] == "present"]
     return changes
@@ -560,6 +579,134 @@ def remove_unstarted_run(run_dir: Path) -> None:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def logged_iterations(run_dir: Path) -> int:
+    """The most iterations a run folder's logs say were completed: the last ``completed`` of
+    ``metrics.jsonl``, or ``iterations_done`` of ``metrics.json`` (0 when neither says; a damaged
+    line or file counts for what it still shows)."""
+    done = 0
+    with contextlib.suppress(OSError, UnicodeDecodeError):
+        for line in (run_dir / METRICS_LOG).read_text().splitlines():
+            with contextlib.suppress(ValueError):
+                row = json.loads(line)
+                if isinstance(row, dict) and isinstance(row.get("completed"), int):
+                    done = max(done, row["completed"])
+    with contextlib.suppress(OSError, ValueError, UnicodeDecodeError):
+        summary = json.loads((run_dir / METRICS_FILE).read_text())
+        if isinstance(summary, dict) and isinstance(summary.get("iterations_done"), int):
+            done = max(done, summary["iterations_done"])
+    return done
+
+
+class NothingToResumeError(ValueError):
+    """A resume that would lose what a run folder holds (its checkpoints are gone, or it asks for
+    fewer iterations than are done); the message says what is missing and what to do."""
+
+
+def require_nothing_to_lose(run_dir: Path) -> None:
+    """Refuse to start a run folder without a checkpoint again from iteration 0 when its logs
+    show completed iterations: that restart would rewrite them (only a run killed during its
+    first iteration, which logged none, starts again)."""
+    done = logged_iterations(run_dir)
+    if done > 0:
+        raise NothingToResumeError(
+            f"{run_dir} has {done} completed iteration{'s' * (done != 1)} logged but no "
+            f"checkpoint in {run_dir / CHECKPOINT_DIR} ({LAST_CHECKPOINT} or model_<k>.pt): it "
+            "cannot be resumed, and starting it again would overwrite its logs; restore "
+            f"{CHECKPOINT_DIR}/ from a backup and resume, or start a new run with another "
+            "--run-name"
+        )
+
+
+def no_checkpoint_error(run_dir: Path) -> FileNotFoundError:
+    """What a command that needs a checkpoint says of a run folder that has none: a run killed
+    during its first iteration (it logged none) can be started again with ``--resume``; one
+    whose checkpoints were lost after it logged iterations needs them back, or a new run."""
+    done = logged_iterations(run_dir)
+    where = f"{CHECKPOINT_DIR}/{LAST_CHECKPOINT}"
+    if done == 0:
+        return FileNotFoundError(
+            f"{run_dir} has no checkpoint ({where}): its training stopped during its first "
+            f"iteration; continue it with `a2cf-mb train --resume {run_dir}`, or delete the folder"
+        )
+    return FileNotFoundError(
+        f"{run_dir} has no checkpoint ({where} or model_<k>.pt) although it logged {done} "
+        f"completed iteration{'s' * (done != 1)}: restore {CHECKPOINT_DIR}/ from a backup, or "
+        "start a new run with another --run-name"
+    )
+
+
+def checkpoint_iterations(path: Path) -> int:
+    """The iterations completed when checkpoint ``path`` was saved."""
+    return int(load_checkpoint(path)["completed_iterations"])
+
+
+def require_enough_iterations(run_dir: Path, checkpoint: Path, iterations: int) -> None:
+    """Refuse a resume to a total of ``iterations`` below what the run has completed (its
+    checkpoint's count, or its logs' where they show more): it would relabel the run's rows."""
+    done = max(checkpoint_iterations(checkpoint), logged_iterations(run_dir))
+    if iterations < done:
+        raise NothingToResumeError(
+            f"--iterations {iterations} is fewer than the {done} iterations {run_dir} has "
+            f"completed: give --iterations {done} or more to continue it (--iterations {done} "
+            f"only exports it), or start a new run of {iterations} iterations with another "
+            "--run-name"
+        )
+
+
+class RunFolderNotWritableError(OSError):
+    """A resume could not write the run folder through (no room, a file-size limit); the
+    message says why and what to do."""
+
+
+WRITE_MARGIN_BYTES = 1 << 20
+"""Room a resume needs beyond its checkpoint and logs written once more (TensorBoard's event
+file, the JSON files) [bytes]."""
+
+
+def require_writable(run_dir: Path, checkpoint: Path | None) -> None:
+    """Refuse, before a resume writes anything, a run folder it could not write through: a
+    folder or log without write permission, a disk without room for a checkpoint written twice
+    (the atomic copy) and the logs rewritten, or a file-size limit (``ulimit -f``) below the
+    largest file it writes. Otherwise the first write would fail with the folder half
+    rewritten."""
+    import resource
+    import shutil
+
+    for folder in (run_dir, run_dir / CHECKPOINT_DIR):
+        if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
+            raise PermissionError(
+                errno.EACCES,
+                "Permission denied (a resume writes into it; make it writable, e.g. chmod u+w)",
+                str(folder),
+            )
+    logs = [run_dir / n for n in (METRICS_LOG, CURRICULUM_LOG, EVALS_LOG, METRICS_FILE)]
+    for path in logs:
+        if path.is_file() and not os.access(path, os.W_OK):
+            raise PermissionError(
+                errno.EACCES,
+                "Permission denied (a resume rewrites it; make it writable, e.g. chmod u+w)",
+                str(path),
+            )
+    checkpoint_bytes = checkpoint.stat().st_size if checkpoint is not None else 0
+    sizes = [checkpoint_bytes, *(p.stat().st_size for p in logs if p.is_file())]
+    needed = checkpoint_bytes + sum(sizes) + WRITE_MARGIN_BYTES
+    free = shutil.disk_usage(run_dir).free
+    if free < needed:
+        raise RunFolderNotWritableError(
+            f"{run_dir} is on a disk with {free / 2**20:.1f} MiB free; a resume writes "
+            f"{needed / 2**20:.1f} MiB before its first iteration ends (the checkpoint twice and "
+            "its logs): free some space and resume again; the run folder is unchanged",
+        )
+    limit, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    largest = max(sizes) + WRITE_MARGIN_BYTES
+    if limit != resource.RLIM_INFINITY and limit < largest:
+        raise RunFolderNotWritableError(
+            f"the file-size limit of this shell (ulimit -f: {limit // 1024} KiB) is below the "
+            f"{largest // 1024} KiB a resume of {run_dir} writes in one file: raise it (ulimit -f "
+            "unlimited) and resume again; the run folder is unchanged",
+        )
+
+
 @dataclass(frozen=True)
 class StartPoint:
     """Where a run starts (:func:`start_point`)."""
@@ -582,10 +729,19 @@ def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
         return StartPoint(cfg, None, None)
     saved = load_run_config(run_dir)
     cfg = replace(saved, iterations=cfg.iterations, resume=cfg.resume)
-    if main:  # what writers killed mid-write left (a SIGKILL during a save): never read
+    # Everything a resume needs is checked before the folder changes (a refused resume leaves
+    # every byte as it was): a checkpoint, or no logged iteration to lose; a total no smaller
+    # than what is done; room and permission to write.
+    checkpoint = resumable_checkpoint(run_dir)
+    if checkpoint is None:
+        require_nothing_to_lose(run_dir)
+    else:
+        require_enough_iterations(run_dir, checkpoint, cfg.iterations)
+    if main:
+        require_writable(run_dir, checkpoint)
+        # what writers killed mid-write left (a SIGKILL during a save): never read
         for folder in (run_dir, run_dir / CHECKPOINT_DIR, run_dir / EVALS_DIR):
             remove_stale_temp_files(folder)
-    checkpoint = resumable_checkpoint(run_dir)
     if checkpoint is not None:
         return StartPoint(cfg, checkpoint, None)
     if main:

@@ -22,7 +22,6 @@ import numpy as np
 
 from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.runs.folder import (
-    CONFIG_FILE,
     EVAL_FILE,
     EVENTS_GLOB,
     METRICS_FILE,
@@ -70,13 +69,14 @@ def _scalars(run_dir: Path) -> dict[str, np.ndarray]:
 def load_run(run_dir: str | Path) -> dict[str, Any]:
     """The curves of one run folder, per iteration (see the module docstring)."""
     run_dir = Path(run_dir)
-    config_path, metrics_path = run_dir / CONFIG_FILE, run_dir / METRICS_FILE
-    for path in (config_path, metrics_path):
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"{path} not found: '{run_dir}' is not a finished run folder of `a2cf-mb train`"
-            )
+    metrics_path = run_dir / METRICS_FILE
     config = read_config_file(run_dir, sections=("train", "task", "env"))
+    if not metrics_path.is_file():
+        raise FileNotFoundError(
+            f"{metrics_path} not found: '{run_dir}' is not a finished run (metrics.json is "
+            f"written when training ends); finish it, or write it again, with `a2cf-mb train "
+            f"--resume {run_dir}` (a finished run only exports)"
+        )
     metrics = read_run_json(
         metrics_path, "the run's metrics", f"write it again with `a2cf-mb train --resume {run_dir}`"
     )

@@ -6,6 +6,7 @@ import dataclasses
 import re
 import typing
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 from rl.a2cf.config import CoachHelpConfig, CurriculumConfig, WarmStartConfig, get_mode
@@ -16,6 +17,13 @@ from rl.evaluation.config import AloneEvalConfig
 
 if TYPE_CHECKING:
     from rl.a2cf.config import ModeSpec
+
+MAX_ITERATIONS = 1_000_000_000
+"""Most iterations a run may ask for (and the longest interval between kept checkpoints) [-]."""
+
+MAX_NAME_BYTES = 255
+"""Longest file or folder name Linux file systems take (a run folder's name, each part of --out)
+[bytes]."""
 
 MAX_ROLLOUT_TRANSITIONS = 2**24
 """Most transitions (envs x steps per env) one iteration may collect: a typical GPU run collects
@@ -55,12 +63,16 @@ class PPOConfig:
         if self.gamma is not None:
             check_range(self.gamma, "--ppo-gamma", 0.0, 1.0, low_open=True)
         check_range(self.lam, "--ppo-lam", 0.0, 1.0)
-        check_range(self.value_loss_coef, "--ppo-value-loss-coef", 0.0)
-        check_range(self.entropy_coef, "--ppo-entropy-coef", 0.0)
-        check_range(self.max_grad_norm, "--ppo-max-grad-norm", 0.0, low_open=True)
-        check_range(self.desired_kl, "--ppo-desired-kl", 0.0, low_open=True)
-        check_range(self.init_noise_std, "--ppo-init-noise-std", 0.0, low_open=True)
-        check_range(self.assist_init_noise_std, "--ppo-assist-init-noise-std", 0.0, low_open=True)
+        check_range(self.value_loss_coef, "--ppo-value-loss-coef", 0.0, 1000.0)
+        check_range(self.entropy_coef, "--ppo-entropy-coef", 0.0, 100.0)
+        check_range(self.max_grad_norm, "--ppo-max-grad-norm", 0.0, 1e6, low_open=True)
+        check_range(self.desired_kl, "--ppo-desired-kl", 0.0, 1.0, low_open=True)
+        # a std of 100 raw action units already drowns the policy's mean (actions are scaled
+        # to joint offsets of a fraction of a radian)
+        check_range(self.init_noise_std, "--ppo-init-noise-std", 0.0, 100.0, low_open=True)
+        check_range(
+            self.assist_init_noise_std, "--ppo-assist-init-noise-std", 0.0, 100.0, low_open=True
+        )
 
 
 @dataclass(frozen=True)
@@ -86,8 +98,8 @@ class ModelConfig:
                 check_range(width, f"--model-{name}-hidden-dims", 1, 100_000)
         check_range(self.latent_dim, "--model-latent-dim", 1, 100_000)
         check_range(self.vae_learning_rate, "--model-vae-learning-rate", 0.0, 1.0, low_open=True)
-        check_range(self.vae_kl_weight, "--model-vae-kl-weight", 0.0)
-        check_range(self.vae_velocity_weight, "--model-vae-velocity-weight", 0.0)
+        check_range(self.vae_kl_weight, "--model-vae-kl-weight", 0.0, 1000.0)
+        check_range(self.vae_velocity_weight, "--model-vae-velocity-weight", 0.0, 1000.0)
         if self.vae_learning_epochs is not None:
             check_range(self.vae_learning_epochs, "--model-vae-learning-epochs", 0, 1000)
 
@@ -147,13 +159,25 @@ class TrainConfig:
             raise ValueError(
                 f"--torch-threads must be >= 0 (0: torch's default), got {self.torch_threads}"
             )
+        check_range(self.torch_threads, "--torch-threads", 0, 4096)
         for name in ("iterations", "num_steps_per_env", "save_interval"):
             if getattr(self, name) <= 0:
                 raise ValueError(
                     f"--{name.replace('_', '-')} must be > 0, got {getattr(self, name)}"
                 )
+        # iteration counts are logged and saved as int32-sized numbers
+        check_range(self.iterations, "--iterations", 1, MAX_ITERATIONS)
+        check_range(self.save_interval, "--save-interval", 1, MAX_ITERATIONS)
         if not (self.device == "cpu" or re.fullmatch(r"cuda(:\d+)?", self.device)):
             raise ValueError(f"--device must be cpu, cuda or cuda:N, got '{self.device}'")
+        for flag, path in (("--out", self.out), ("--run-name", self.run_name)):
+            for part in PurePath(path).parts:
+                if len(part.encode()) > MAX_NAME_BYTES:  # refused before any folder is made
+                    raise ValueError(
+                        f"{flag}: the folder name '{part[:24]}...' is {len(part.encode())} bytes "
+                        f"long, more than the {MAX_NAME_BYTES} a file system allows: give a "
+                        "shorter name"
+                    )
         if self.ppo.kl_actions not in ("motion", "all"):
             raise ValueError(
                 f"--ppo-kl-actions must be 'motion' or 'all', got '{self.ppo.kl_actions}'"

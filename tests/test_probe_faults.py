@@ -1,0 +1,424 @@
+"""The probe of issue 56 as the project's suite: faults a careful user still trips over.
+
+Each case is run as a user would (``a2cf-mb ...`` in this process, or a subprocess where the
+environment matters) against one tiny finished run made once per test session: a resume that
+could lose a run, numbers outside any sense, the environment (``MUJOCO_GL``, a video path),
+and one-liners that named the wrong flag or none. A refusal is exit code 2 and one line naming
+the input and what to do, and leaves every byte of the run folder as it was. The default suite
+runs the issue's cases; the whole flag matrix (every numeric flag of ``train``, ``eval`` and
+``eval-curve`` at values outside any sense) is ``@pytest.mark.slow``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_training import tiny_config
+
+from a2cf_mb.cli import DEBUG_ENV, TRACEBACK_DIR_ENV, build_parser, main
+from rl.evaluation.config import AloneEvalConfig
+from rl.runs.folder import (
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    EVAL_FILE,
+    LOCK_FILE,
+    METRICS_FILE,
+    METRICS_LOG,
+    RunFolderLock,
+    StaleLockWarning,
+)
+from rl.training.runner import train
+
+SMALL_EVAL = ("--num-envs", "2", "--num-steps", "3")
+ITERATIONS = 4
+
+
+@pytest.fixture(autouse=True)
+def as_a_user(monkeypatch, tmp_path):
+    """No A2CF_DEBUG; tracebacks saved under the test's folder."""
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    monkeypatch.setenv(TRACEBACK_DIR_ENV, str(tmp_path / "tracebacks"))
+
+
+@pytest.fixture(scope="session")
+def probe_run(tmp_path_factory) -> Path:
+    """A finished 4-iteration run (4 envs x 8 steps, checkpoints at 2 and 4, ONNX exported), made
+    once per session; cases copy it and never change it."""
+    root = tmp_path_factory.mktemp("probe")
+    cfg = tiny_config(
+        root, "a2cf", iterations=ITERATIONS, save_interval=2, eval=AloneEvalConfig(interval=0)
+    )
+    return train(cfg, verbose=False).run_dir
+
+
+@pytest.fixture
+def run(probe_run, tmp_path) -> Path:
+    """A copy of the probe run this case may damage."""
+    return Path(shutil.copytree(probe_run, tmp_path / "run"))
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (relative path -> bytes)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+def run_cli(capsys, *args: object) -> tuple[int, str]:
+    """``a2cf-mb ARGS`` in this process: exit code and stderr."""
+    code = main([str(a) for a in args])
+    return code, capsys.readouterr().err
+
+
+def assert_one_line(err: str, *needles: str) -> None:
+    """One non-empty line on stderr, no traceback, naming every needle."""
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err and "unexpected error" not in err, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def assert_refused(capsys, run: Path | None, *args: object, needles: tuple[str, ...]) -> str:
+    """The command exits 2 with one line naming ``needles``; ``run`` unchanged."""
+    before = snapshot(run) if run is not None else None
+    code, err = run_cli(capsys, *args)
+    assert code == 2, err
+    assert_one_line(err, *needles)
+    if run is not None:
+        assert snapshot(run) == before
+    return err
+
+
+# ------------------------------------------------------------------ a resume never destroys
+def test_a_run_with_rows_but_no_checkpoint_is_refused_not_restarted(capsys, run):
+    shutil.rmtree(run / CHECKPOINT_DIR)
+    (run / CHECKPOINT_DIR).mkdir()
+    err = assert_refused(
+        capsys, run, "train", "--resume", run,
+        needles=(f"{ITERATIONS} completed iterations logged", "no checkpoint", "restore",
+                 "new run"),
+    )  # fmt: skip
+    assert "from iteration 0" not in err
+
+
+@pytest.mark.parametrize("use_onnx", ["--use-onnx", "--no-use-onnx"])
+def test_eval_of_a_run_without_checkpoints_does_not_recommend_a_resume(capsys, run, use_onnx):
+    shutil.rmtree(run / CHECKPOINT_DIR)
+    err = assert_refused(
+        capsys, run, "eval", use_onnx, *SMALL_EVAL, run, needles=("no checkpoint", "restore")
+    )
+    assert "--resume" not in err
+
+
+@pytest.mark.parametrize("iterations", [1, ITERATIONS - 1])
+def test_a_resume_to_fewer_iterations_than_done_is_refused(capsys, run, iterations):
+    assert_refused(
+        capsys, run, "train", "--resume", run, "--iterations", iterations,
+        needles=(f"--iterations {iterations}", f"{ITERATIONS} iterations", "new run"),
+    )  # fmt: skip
+
+
+def test_a_resume_checks_the_disk_before_it_writes(capsys, monkeypatch, run):
+    usage = shutil.disk_usage(run)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=4096))
+    assert_refused(
+        capsys, run, "train", "--resume", run, needles=("free", "the run folder is unchanged")
+    )
+
+
+def test_a_resume_checks_the_file_size_limit_before_it_writes(capsys, run):
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, hard))
+    try:
+        code, err = run_cli(capsys, "train", "--resume", run, "--iterations", ITERATIONS + 1)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert code == 2, err
+    assert_one_line(err, "ulimit -f", "the run folder is unchanged")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores permission bits")
+def test_a_resume_of_a_read_only_run_folder_is_refused_unchanged(capsys, run):
+    before = snapshot(run)
+    run.chmod(0o555)
+    try:
+        code, err = run_cli(capsys, "train", "--resume", run, "--iterations", ITERATIONS + 1)
+    finally:
+        run.chmod(0o755)
+    assert code == 2
+    assert_one_line(err, str(run), "writable")
+    assert snapshot(run) == before
+
+
+def test_a_run_killed_in_its_first_iteration_still_starts_again(run):
+    """No logged iteration, no checkpoint: nothing to lose, the resume starts from iteration 0
+    (checked up to the choice of the start point, without training)."""
+    from rl.runs.folder import start_point
+    from rl.training.config import TrainConfig
+
+    for name in (CHECKPOINT_DIR,):
+        shutil.rmtree(run / name)
+    for name in (METRICS_LOG, METRICS_FILE):
+        (run / name).unlink()
+    start = start_point(TrainConfig(resume=str(run), iterations=ITERATIONS), run)
+    assert start.checkpoint is None
+
+
+# ------------------------------------------------------------------ every number has a sense
+# (command, flag, value): each refused by the flag the user typed, before anything is written
+ISSUE_NUMBERS = [
+    ("train", "--task-target-min-survival", "1e30"),
+    ("train", "--task-target-min-survival", "-1"),
+    ("train", "--task-pushes-velocity-xy-mps", "1e30"),
+    ("train", "--task-initial-state-joint-pos-noise-rad", "-1"),
+    ("train", "--task-initial-state-base-vel-noise", "-1"),
+    ("train", "--task-initial-state-joint-pos-noise-rad", "1e30"),
+    ("train", "--task-initial-state-base-vel-noise", "1e30"),
+    ("train", "--ppo-init-noise-std", "1e30"),
+    ("train", "--ppo-assist-init-noise-std", "1e30"),
+    ("train", "--ppo-entropy-coef", "1e30"),
+    ("train", "--ppo-value-loss-coef", "1e30"),
+    ("train", "--ppo-desired-kl", "1e30"),
+    ("train", "--model-vae-kl-weight", "1e30"),
+    ("train", "--model-vae-velocity-weight", "1e30"),
+    ("train", "--task-less-assist-weight", "1e30"),
+    ("train", "--curriculum-less-assist-progress", "1e30"),
+    ("train", "--curriculum-skill-learned-progress", "1e30"),
+    ("train", "--task-pushes-interval-range-s", "0"),
+    ("train", "--task-pushes-interval-range-s", "-1"),
+    ("train", "--task-pushes-interval-range-s", "1e30"),
+    ("train", "--task-randomization-friction-range", "0"),
+    ("train", "--task-randomization-friction-range", "-1"),
+    ("train", "--task-randomization-friction-range", "1e30"),
+    ("train", "--task-episode-length-s", "1e30"),
+    ("train", "--iterations", "10000000000"),
+    ("train", "--save-interval", "10000000000"),
+    ("eval", "--video-min-s", "-1"),
+    ("eval", "--video-min-s", "1e30"),
+    ("eval", "--seed", "-1"),
+    ("eval", "--num-envs", "0"),
+    ("eval-curve", "--num-envs", "0"),
+    ("eval-curve", "--seed", "-1"),
+    ("eval-curve", "--every-iterations", "0"),
+]
+
+
+def command_line(command: str, flag: str, values: list[str], run: Path, out: Path) -> list:
+    """The command line of one numeric case (train writes under ``out``, eval reads ``run``)."""
+    if command == "train":
+        return ["train", "--out", out, "--run-name", "r", flag, *values]
+    extra = ["--video", out / "v.mp4"] if flag.startswith("--video-") else []
+    return [command, run, *extra, flag, *values]
+
+
+@pytest.mark.parametrize(("command", "flag", "value"), ISSUE_NUMBERS)
+def test_a_number_out_of_sense_is_refused_by_the_flag_typed(
+    capsys, probe_run, tmp_path, command, flag, value
+):
+    out = tmp_path / "out"
+    before = snapshot(probe_run)
+    code, err = run_cli(capsys, *command_line(command, flag, [value], probe_run, out))
+    assert code == 2, err
+    assert_one_line(err, f"error: {flag} ")
+    assert not out.exists()
+    assert snapshot(probe_run) == before
+
+
+def test_a_pair_flag_says_the_form_and_the_bounds(capsys, tmp_path):
+    out = tmp_path / "out"
+    for values in (["3", "1"], ["0", "1"], ["1", "1e30"]):
+        code, err = run_cli(
+            capsys, "train", "--out", out, "--task-pushes-interval-range-s", *values
+        )
+        assert code == 2
+        assert_one_line(err, "--task-pushes-interval-range-s", "two numbers LOW HIGH", "(0, 3600]")
+    assert not out.exists()
+
+
+def numeric_flags(command: str) -> list[tuple[str, str]]:
+    """(flag, kind) of every numeric option of ``command`` (kind: "int" or "float")."""
+    root = build_parser(command)
+    sub = next(a for a in root._actions if isinstance(a, argparse._SubParsersAction))
+    flags = []
+    for action in sub.choices[command]._actions:
+        kind = getattr(action.type, "__name__", "")
+        if action.option_strings and kind in ("int", "finite_float"):
+            flags.append((action.option_strings[0], "int" if kind == "int" else "float"))
+    return flags
+
+
+NONSENSE = {"float": ("1e30", "-1e30", "nan", "inf"), "int": ("10000000000", "-10000000000", "nan")}
+MATRIX = [
+    pytest.param(command, flag, value, id=f"{command} {flag}={value}")
+    for command in ("train", "eval", "eval-curve")
+    for flag, kind in numeric_flags(command)
+    if flag != "--iterations" or command == "train"  # eval-curve's K: a checkpoint's name
+    for value in NONSENSE[kind]
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("command", "flag", "value"), MATRIX)
+def test_every_numeric_flag_refuses_nonsense(capsys, probe_run, tmp_path, command, flag, value):
+    out = tmp_path / "out"
+    code, err = run_cli(capsys, *command_line(command, flag, [value], probe_run, out))
+    assert code == 2, err
+    assert_one_line(err, flag)
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------ the environment, up front
+def cli_subprocess(*args: object, **env: str) -> subprocess.CompletedProcess:
+    """``python -m a2cf_mb ARGS`` with ``env`` added to the environment."""
+    return subprocess.run(
+        [sys.executable, "-m", "a2cf_mb", *map(str, args)],
+        env={**os.environ, DEBUG_ENV: "0", **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["train", "--iterations", "1", "--out", "OUT"], ["eval", "RUN"],
+     ["eval", "RUN", "--video", "OUT/v.mp4"], ["solve-dance", "--out", "OUT"]],
+    ids=["train", "eval", "eval-video", "solve-dance"],
+)  # fmt: skip
+def test_a_mujoco_gl_that_names_no_backend_is_one_line(probe_run, tmp_path, args):
+    out = tmp_path / "out"
+    args = [a.replace("RUN", str(probe_run)).replace("OUT", str(out)) for a in args]
+    before = snapshot(probe_run)
+    done = cli_subprocess(*args, MUJOCO_GL="bogus")
+    assert done.returncode == 2, done.stderr
+    assert_one_line(done.stderr, "MUJOCO_GL=bogus", "MUJOCO_GL=egl")
+    assert snapshot(probe_run) == before
+    assert not out.exists()
+
+
+def osmesa_loads() -> bool:
+    """Whether MuJoCo imports with MUJOCO_GL=osmesa here (an OSMesa library is installed)."""
+    code = "import mujoco"
+    env = {**os.environ, "MUJOCO_GL": "osmesa"}
+    return (
+        subprocess.run([sys.executable, "-c", code], env=env, capture_output=True).returncode == 0
+    )
+
+
+@pytest.mark.parametrize("command", ["eval", "solve-dance"])
+def test_a_gl_backend_that_cannot_load_is_one_line_before_any_work(run, tmp_path, command):
+    if osmesa_loads():
+        pytest.skip("OSMesa is installed here: MUJOCO_GL=osmesa renders")
+    before = snapshot(run)
+    args = ["eval", run, "--video", tmp_path / "v.mp4", *SMALL_EVAL] if command == "eval" else [
+        "solve-dance", "--out", tmp_path / "art"]  # fmt: skip
+    done = cli_subprocess(*args, MUJOCO_GL="osmesa")
+    assert done.returncode == 2, done.stderr
+    assert_one_line(done.stderr, "MUJOCO_GL=osmesa", "libosmesa6")
+    assert snapshot(run) == before
+    assert not (tmp_path / "art").exists()
+
+
+def test_a_video_path_that_is_a_folder_is_one_line_before_the_rollout(capsys, run, tmp_path):
+    folder = tmp_path / "video.mp4"
+    folder.mkdir()
+    assert_refused(capsys, run, "eval", run, *SMALL_EVAL, "--video", folder,
+                   needles=(f"--video {folder} is a folder", "file name"))  # fmt: skip
+    assert not (run / EVAL_FILE).exists()
+
+
+def test_a_renderer_that_cannot_start_is_one_line_before_the_rollout(capsys, monkeypatch, run):
+    import mujoco
+
+    def no_gl(*args, **kwargs):
+        raise AttributeError("'NoneType' object has no attribute 'glGetError'")
+
+    monkeypatch.setattr(mujoco, "Renderer", no_gl)
+    video = run.parent / "v.mp4"
+    assert_refused(capsys, run, "eval", run, *SMALL_EVAL, "--video", video,
+                   needles=("--video", "MUJOCO_GL", "without --video"))  # fmt: skip
+    assert not video.exists()
+
+
+def test_a_rendering_failure_keeps_the_evaluation(capsys, monkeypatch, run):
+    import optimal_control.render
+    import rl.evaluation.policy
+
+    def broken(*args, **kwargs):
+        raise AttributeError("'NoneType' object has no attribute 'glGetError'")
+
+    monkeypatch.setattr(optimal_control.render, "check_offscreen_rendering", lambda: None)
+    monkeypatch.setattr(rl.evaluation.policy, "render_qpos", broken)
+    with pytest.warns(UserWarning, match="no video: rendering failed .AttributeError"):
+        code, err = run_cli(
+            capsys, "eval", run, *SMALL_EVAL, "--video", run.parent / "v.mp4", "--video-min-s", "0"
+        )
+    assert code == 0, err
+    result = json.loads((run / EVAL_FILE).read_text())
+    assert "survival_fraction" in result and "no video" in result["video_note"]
+
+
+# ------------------------------------------------------------------ the right flag, advice, litter
+@pytest.mark.parametrize(
+    "args",
+    [["train", "--resume", "RUN"], ["eval-curve", "RUN"]],
+    ids=["resume", "eval-curve"],
+)  # fmt: skip
+def test_a_run_without_its_config_says_to_restore_it(capsys, run, args):
+    (run / CONFIG_FILE).unlink()
+    args = [run if a == "RUN" else a for a in args]
+    assert_refused(capsys, run, *args, needles=(CONFIG_FILE, "restore", "new run"))
+
+
+def test_compare_of_an_unfinished_run_names_the_resume(capsys, run, tmp_path):
+    (run / METRICS_FILE).unlink()
+    assert_refused(capsys, run, "compare", run, "--out", tmp_path / "cmp",
+                   needles=(METRICS_FILE, f"a2cf-mb train --resume {run}"))  # fmt: skip
+    assert not (tmp_path / "cmp").exists()
+
+
+def test_a_garbage_lock_of_an_hour_ago_is_taken_over_by_name(run):
+    lock = run / LOCK_FILE
+    lock.write_bytes(bytes(range(256)))
+    os.utime(lock, (lock.stat().st_atime - 3600, lock.stat().st_mtime - 3600))
+    with pytest.warns(StaleLockWarning, match=str(lock)), RunFolderLock(run, create=False):
+        assert json.loads(lock.read_text())["pid"] == os.getpid()
+    assert not lock.exists()
+
+
+@pytest.mark.parametrize("where", ["--run-name", "--out"])
+def test_a_name_too_long_for_the_file_system_leaves_no_folder(capsys, tmp_path, where):
+    long = "x" * 300
+    args = (
+        ["--out", tmp_path / "long", "--run-name", long]
+        if where == "--run-name"
+        else ["--out", tmp_path / "long" / long]
+    )
+    assert_refused(capsys, None, "train", *args, needles=(where, "300 bytes", "shorter name"))
+    assert not (tmp_path / "long").exists()
+
+
+def test_a_lock_that_fails_to_make_its_folder_removes_the_parents_it_made(tmp_path):
+    with pytest.raises(OSError):
+        RunFolderLock(tmp_path / "long" / ("x" * 300)).acquire()
+    assert not (tmp_path / "long").exists()
+
+
+def test_fields_of_a_saved_config_keep_their_meaning():
+    """The bounds never refuse what the tasks and today's defaults hold (a run folder made
+    today resumes)."""
+    from rl.tasks.registry import TASKS, get_task
+    from rl.training.config import TrainConfig
+
+    for name in TASKS:
+        task = get_task(name)
+        assert dataclasses.replace(task) == task
+    assert TrainConfig.from_dict(TrainConfig().to_dict()) == TrainConfig()
