@@ -18,8 +18,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "run_dir",
-        help="run folder written by `a2cf-mb train`, or an exported policy's folder (policy.json, "
-        "policy.onnx): played by the standalone runner a2cf_mb/deploy/run_bundle.py",
+        # an exported policy's folder (policy.json, policy.onnx) is played by the standalone
+        # runner a2cf_mb/deploy/run_bundle.py
+        help="run folder of `a2cf-mb train`, or an exported policy's folder",
     )
     add_config_arguments(parser, EvalConfig)
     parser.set_defaults(func=run)

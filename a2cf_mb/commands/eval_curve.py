@@ -22,7 +22,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--every-iterations",
         type=int,
         default=1,
-        help="evaluate only checkpoints whose iteration is a multiple of this (default: 1, all)",
+        help="only checkpoints whose iteration is a multiple of this (default: 1, all)",
     )
     parser.add_argument(
         "--iterations",

@@ -21,8 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--clip",
         default="",
-        help="motion clip (.csv: 36 columns xyz, quat xyzw, 29 joints; or .npz); "
-        "default: the built-in placo choreography",
+        help="motion clip, .csv (xyz, quat xyzw, 29 joints) or .npz; default: built-in",
     )
     parser.add_argument(
         "--clip-frames",

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from a2cf_mb.config_cli import add_config_arguments, config_from_args, given_flags
+from a2cf_mb.config_cli import add_config_arguments, config_from_args, finite_float, given_flags
 
 TASK_PREFIX = "task."
 NOT_FLAGS = ("task_overrides",)
@@ -17,13 +17,14 @@ ALWAYS_APPLIED_ON_RESUME = ("resume", "iterations")
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``train`` subcommand: TrainConfig fields, nested ones prefixed (``--env-*``,
     ``--ppo-*``, ``--model-*``, ``--curriculum-*``), and the task's fields as ``--task-*``."""
+    from rl.a2cf.config import MODES
     from rl.envs.task_schema import TaskConfig
     from rl.tasks.registry import get_task
     from rl.training.config import TrainConfig
 
     parser = subparsers.add_parser(
         "train",
-        help="train a task (modes: baseline, a2cf, no-pi, no-id, no-rm); --resume RUN_DIR continues",
+        help=f"train a task (modes: {', '.join(MODES)}); --resume RUN_DIR continues",
         description="Joint PPO (rsl-rl) over motion + assist actions with the A2CF curriculum. "
         "Writes a run folder (config, checkpoints, TensorBoard, curriculum log, metrics, ONNX). "
         "--task-* flags change the chosen task's config (defaults shown are those of 'stand'; "
@@ -37,22 +38,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--task-reward-weight", nargs="+", default=[], metavar="NAME=WEIGHT",
-        help="replace the weight of reward terms of the task, e.g. upright=2 termination=-100",
+        help="replace reward weights of the task, e.g. upright=2 termination=-100",
     )  # fmt: skip
     parser.add_argument(
         "--task-term-param",
         nargs="+",
         default=[],
         metavar="TERM.PARAM=VALUE",
-        help="replace a parameter of a reward/termination/observation term, e.g. "
-        "tilted.max_tilt_rad=0.6 base_height.target_m=0.72",
+        help="replace a parameter of a task term, e.g. tilted.max_tilt_rad=0.6",
     )
     parser.set_defaults(func=run)
 
 
 def _number(text: str, what: str) -> float:
-    from a2cf_mb.config_cli import finite_float
-
     try:
         return finite_float(text)
     except argparse.ArgumentTypeError as err:

@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
-from rl.a2cf.config import CoachHelpConfig, CurriculumConfig, WarmStartConfig, get_mode
+from rl.a2cf.config import MODES, CoachHelpConfig, CurriculumConfig, WarmStartConfig, get_mode
 from rl.config_bounds import check_range
 from rl.envs.assist import DEFAULT_RANDOM_MASK_PROB
 from rl.envs.config import EnvConfig
@@ -35,23 +35,22 @@ class PPOConfig:
     """rsl-rl PPO hyper-parameters (rsl-rl / legged-gym defaults)."""
 
     learning_rate: float = 1e-3  # initial Adam learning rate (adaptive schedule) [-]
-    num_learning_epochs: int | None = None
-    """passes over each rollout; None: the task's (TaskConfig.learning_epochs, 5 unless the task says) [-]"""
+    num_learning_epochs: int | None = None  # PPO passes per rollout; None: the task's [-]
     num_mini_batches: int = 4  # mini-batches per pass [-]
     clip_param: float = 0.2  # PPO ratio clip [-]
-    gamma: float | None = None
-    """discount per control step; None: the task's (TaskConfig.discount) [-]"""
+    gamma: float | None = None  # discount per control step; None: the task's discount [-]
     lam: float = 0.95  # GAE lambda [-]
     value_loss_coef: float = 1.0  # weight of the value loss [-]
     entropy_coef: float = 0.005  # weight of the entropy bonus [-]
     max_grad_norm: float = 1.0  # gradient-norm clip [-]
     desired_kl: float = 0.01  # target KL of the adaptive learning-rate schedule [-]
     init_noise_std: float = 0.5  # initial std of the motion actions (raw action units) [-]
-    kl_actions: str = "motion"  # whose KL sets the adaptive learning rate: "motion" actions' or "all" (rsl-rl's) [-]
-    assist_init_noise_std: float = 0.3
-    """initial std of the raw assist actions, before tanh (the paper: 1.0) [-]"""
-    assist_in_ratio: str = "always"
-    """PPO's ratio and entropy over the assist actions "always" (rsl-rl's joint action, the paper's) or "while_helping" (dropped once the curriculum has turned assistance off for good) [-]"""
+    kl_actions: str = "motion"  # whose KL sets the learning rate: "motion" or "all" [-]
+    # the paper's is 1.0 (docs/training.md says why not)
+    assist_init_noise_std: float = 0.3  # initial std of the raw assist actions, before tanh [-]
+    # PPO's ratio and entropy over the assist actions "always" (rsl-rl's joint action, the paper's)
+    # or "while_helping" (dropped once the curriculum has turned assistance off for good)
+    assist_in_ratio: str = "always"  # assist actions in PPO's ratio: always, while_helping [-]
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared (a saved config is checked on load too)."""
@@ -88,8 +87,7 @@ class ModelConfig:
     vae_learning_rate: float = 1e-3  # Adam learning rate of the history encoder [-]
     vae_kl_weight: float = 1e-3  # beta of the beta-VAE [-]
     vae_velocity_weight: float = 1.0  # weight of the velocity-estimation loss [-]
-    vae_learning_epochs: int | None = None
-    """encoder-update passes over each rollout; 0 = PPO's epochs; None: the task's (TaskConfig.vae_learning_epochs) [-]"""
+    vae_learning_epochs: int | None = None  # encoder passes per rollout; 0: PPO's; None: the task's
 
     def __post_init__(self) -> None:
         """Bound every numeric field where it is declared."""
@@ -109,19 +107,18 @@ class TrainConfig:
     """One training run; nested configs become ``--env-*``, ``--ppo-*``, ``--model-*`` and
     ``--curriculum-*`` flags, task fields ``--task-*`` (see :mod:`a2cf_mb.commands.train`)."""
 
-    task: str = "stand"  # task name from rl.tasks.registry.TASKS (see list-tasks) [-]
-    mode: str = "a2cf"  # baseline | a2cf | no-pi | no-id | no-rm [-]
-    iterations: int = 100  # total learning iterations of the run (a resume continues up to it) [-]
+    task: str = "stand"  # registered task name (a2cf-mb list-tasks) [-]
+    mode: str = field(default="a2cf", metadata={"help": " | ".join(MODES) + " [-]"})
+    iterations: int = 100  # total learning iterations (a resume continues to it) [-]
     num_steps_per_env: int = 24  # control steps per env per iteration (rollout length) [-]
     out: str = "runs"  # parent folder of new run folders [-]
     run_name: str = ""  # run folder name; empty: <task>_<mode>_<UTC time> [-]
-    resume: str = ""  # run folder to continue from its last checkpoint; empty: new run [-]
-    save_interval: int = 50
-    """iterations between kept checkpoints model_<it>.pt (last.pt: every iteration) [-]"""
-    random_mask_prob: float = DEFAULT_RANDOM_MASK_PROB
-    """zeta, probability of dropping a wrench component [-]"""
+    resume: str = ""  # run folder to continue (last checkpoint); empty: a new run [-]
+    # last.pt is written every iteration
+    save_interval: int = 50  # iterations between kept checkpoints model_<it>.pt [-]
+    random_mask_prob: float = DEFAULT_RANDOM_MASK_PROB  # zeta: a wrench component dropped [-]
     device: str = "cpu"  # torch device of the learner [-]
-    torch_threads: int = 1  # torch intra-op threads (1: measured best on 2 shared cores, see bench train); 0: torch's default [-]
+    torch_threads: int = 1  # torch intra-op threads; 0: torch's default [-]
     export_onnx: bool = True  # export the motion policy to ONNX at the end [-]
     random_episode_start: bool = True  # random initial episode counters (spread time-outs) [-]
     env: EnvConfig = field(default_factory=EnvConfig)  # env size, threads, seed, switches
@@ -131,26 +128,28 @@ class TrainConfig:
     eval: AloneEvalConfig = field(
         default_factory=AloneEvalConfig
     )  # evaluations of the motion policy alone during training
-    warmstart: str = ""  # distil the assist head from a coach first: "posture" (built-in, as needed) or an oracle artifact folder; empty: none [-]
-    warmstart_motion: bool = False  # clone the motion head from the task's time-indexed joint reference first (dance) [-]
+    # "posture": the built-in as-needed coach; an oracle artifact folder: its coach; empty: none
+    warmstart: str = ""  # distil the assist head first from "posture" or an artifact [-]
+    # from the task's time-indexed joint reference (dance)
+    warmstart_motion: bool = False  # first clone the motion head from the joint reference [-]
     distill: WarmStartConfig = field(
         default_factory=WarmStartConfig
     )  # DAgger rounds of the warm start
     coach: CoachHelpConfig = field(
         default_factory=CoachHelpConfig
     )  # mode coach: the oracle artifact's coach as the help, scaled by the failure rate
-    reference: tuple[
-        str, ...
-    ] = ()  # motions a tracking task tracks, one per episode: clip files (LAFAN1 G1 CSV, NPZ, whole_body_tracking/mjlab motion NPZ), oracle artifact folders or "builtin"; empty: the task's own [-]
-    reference_frames: str = ""  # segment A:B of every reference's source frames (A inclusive, B exclusive); empty: all [-]
+    # clip files (LAFAN1 G1 CSV, NPZ, whole_body_tracking/mjlab motion NPZ), oracle artifact
+    # folders or "builtin"
+    reference: tuple[str, ...] = ()  # motions to track, one per episode; empty: the task's [-]
+    reference_frames: str = ""  # frames A:B of every reference (B exclusive); empty: all [-]
     # solve-dance --clip's per-frame QP of the tracked segment (eta0 per 1 s bin), solved once
     # into <out>/oracle_cache/<fingerprint>/; --warmstart / --coach-source oracle then name it
-    oracle: bool = False  # track: solve (or reuse) the reference's oracle artifact [-]
+    oracle: bool = False  # track: solve or reuse the reference's oracle artifact [-]
     # its torques feed --task-action-feedforward, its eta0 per bin an assist mode's curriculum
     oracle_artifact: str = ""  # oracle artifact folder the run uses (--oracle fills it) [-]
     task_overrides: dict[str, Any] = field(
         default_factory=dict
-    )  # dotted task-field changes, see rl.task_overrides
+    )  # dotted task-field changes, see TaskConfig.with_overrides
 
     def __post_init__(self) -> None:
         """Check values a user could get wrong."""
