@@ -97,7 +97,7 @@ def test_ppo_update_is_the_tasks_unless_the_run_gives_one() -> None:
     assert update(given) == (0.98, 5, 0)
     with pytest.raises(ValueError, match="discount must be in"):
         dataclasses.replace(get_task("stand"), discount=1.5)
-    with pytest.raises(ValueError, match="learning_epochs must be >= 1"):
+    with pytest.raises(ValueError, match="--task-learning-epochs must be in"):
         dataclasses.replace(get_task("stand"), learning_epochs=0)
     with pytest.raises(ValueError, match="--ppo-gamma must be in"):
         TrainConfig(ppo=PPOConfig(gamma=1.5))

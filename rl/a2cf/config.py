@@ -173,15 +173,9 @@ class WarmStartConfig:
     seed: int = 0  # shuffling seed [-]
 
     def __post_init__(self) -> None:
-        if min(self.rounds, self.steps_per_round, self.epochs, self.batch_size) < 1:
-            raise ValueError(
-                "warm start rounds, steps_per_round, epochs and batch_size must be >= 1"
-            )
-        if not 0.0 < self.held_out < 1.0:
-            raise ValueError(f"warm start held_out must be in (0, 1), got {self.held_out}")
-        if self.assist_std <= 0:
-            raise ValueError(f"warm start assist_std must be > 0, got {self.assist_std}")
-        # upper bounds: what a warm start of minutes could use (``--distill-*`` are the flags)
+        """Bound every field where it is declared; ``--distill-*`` are its flags (upper
+        bounds: what a warm start of minutes could use)."""
+        check_range(self.held_out, "--distill-held-out", 0.0, 1.0, low_open=True, high_open=True)
         check_range(self.rounds, "--distill-rounds", 1, 1000)
         check_range(self.steps_per_round, "--distill-steps-per-round", 1, 10_000_000)
         check_range(self.epochs, "--distill-epochs", 1, 100_000)

@@ -220,17 +220,11 @@ class TaskConfig:
         check_unique("termination", self.terminations)
         for group in ("policy", "privileged", "critic"):
             check_unique(f"{group} observation", getattr(self.observations, group).terms)
-        if not 0.0 < self.discount <= 1.0:
-            raise ValueError(f"task discount must be in (0, 1], got {self.discount}")
+        check_range(self.discount, "--task-discount", 0.0, 1.0, low_open=True)
         if self.drift_free_phases and not any("free_phases" in t.params for t in self.terminations):
             raise ValueError(
                 f"task '{self.name}' has no drift termination to switch off by phase; "
                 "--task-drift-free-phases is for the tracking tasks (--task track)"
-            )
-        if self.learning_epochs < 1 or self.vae_learning_epochs < 0:
-            raise ValueError(
-                f"task learning_epochs must be >= 1 and vae_learning_epochs >= 0, got "
-                f"{self.learning_epochs} and {self.vae_learning_epochs}"
             )
         check_range(self.learning_epochs, "--task-learning-epochs", 1, 1000)
         check_range(self.vae_learning_epochs, "--task-vae-learning-epochs", 0, 1000)
