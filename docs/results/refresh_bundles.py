@@ -64,12 +64,22 @@ def _require_same_episode(run_dir: str, task) -> None:
     """Refuse a task whose episode (start, end, scene, action law) is not the run's saved one."""
     saved = read_config_file(run_dir, ("task",))["task"]
     today = task.to_json_dict()
-    changed = [k for k in EPISODE_KEYS if saved.get(k) != today.get(k)]
+    changed = [k for k in EPISODE_KEYS if _differs(saved.get(k), today.get(k))]
     if changed:
         raise ValueError(
             f"{run_dir}: today's task differs from the run's in {', '.join(changed)}: the "
             "bundle's facts would not be the training's"
         )
+
+
+def _differs(saved, today) -> bool:
+    """The saved entry differs from today's; a field the run's version had not yet (absent from
+    its config) is not a difference: it ran with what is today's default."""
+    if saved is None:
+        return False
+    if isinstance(saved, dict) and isinstance(today, dict):
+        return any(_differs(v, today.get(k)) for k, v in saved.items())
+    return saved != today
 
 
 def _env_fields(cfg) -> dict:
