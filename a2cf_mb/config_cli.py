@@ -4,9 +4,10 @@ Each field of a config dataclass becomes ``--prefix-field-name`` with the field'
 nested dataclass fields recurse (``TrainConfig.ppo.learning_rate`` -> ``--ppo-learning-rate``).
 Help text comes from the field itself: ``field(metadata={"help": ...})``, else the comment on the
 field's own lines (however the formatter wrapped them), else a comment block right above it, else
-a docstring right below the field,
-searched through the class and its bases, so inherited fields keep theirs. A test checks that
-every flag of every command has help. Float flags refuse NaN and infinity by name. The parsed
+a docstring right below the field, searched through the class and its bases, so inherited fields
+keep theirs. The project's configs use the trailing comment (one line: what the field is and its
+unit; why, in a comment above) and metadata only for computed text. Tests check that every flag
+of every command has help and that it fits one line of ``docs/cli.md``. Float flags refuse NaN and infinity by name. The parsed
 namespace records which flags were given (:func:`given_flags`), e.g. to say what a ``--resume``
 will not apply. A few nested fields also take the short flag other RL tools use
 (:data:`SHORT_FLAGS`: ``--num-envs`` for ``--env-num-envs``), as a second spelling of the same
