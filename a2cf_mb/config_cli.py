@@ -7,11 +7,11 @@ field's own lines (however the formatter wrapped them), else a comment block rig
 a docstring right below the field, searched through the class and its bases, so inherited fields
 keep theirs. The project's configs use the trailing comment (one line: what the field is and its
 unit; why, in a comment above) and metadata only for computed text. Tests check that every flag
-of every command has help and that it fits one line of ``docs/cli.md``. Float flags refuse NaN and infinity by name. The parsed
-namespace records which flags were given (:func:`given_flags`), e.g. to say what a ``--resume``
-will not apply. A few nested fields also take the short flag other RL tools use
-(:data:`SHORT_FLAGS`: ``--num-envs`` for ``--env-num-envs``), as a second spelling of the same
-option, not a second field.
+of every command has help and that it fits one line of ``docs/cli.md``. Float flags refuse NaN
+and infinity by name. The parsed namespace records which flags were given (:func:`given_flags`),
+e.g. to say what a ``--resume`` will not apply. A few nested fields also take the short flag other
+RL tools use (:data:`SHORT_FLAGS`: ``--num-envs`` for ``--env-num-envs``), as a second spelling of
+the same option, not a second field.
 
 Why not tyro (which mjlab uses): it would give the same flags, but ``--resume`` needs to know which
 flags the user typed, the bool ``--x/--no-x`` style and the one-line error messages are ours, and
