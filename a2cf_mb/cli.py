@@ -28,6 +28,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "a2cf_mb.commands.compare",
     "a2cf_mb.commands.list_tasks",
     "a2cf_mb.commands.demo",
+    "a2cf_mb.commands.play",
     "a2cf_mb.commands.solve_walk",
     "a2cf_mb.commands.solve_dance",
     "a2cf_mb.commands.solve_backflip",

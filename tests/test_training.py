@@ -322,7 +322,7 @@ def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> No
     def no_gl(*args, **kwargs):
         raise RenderUnavailableError("MuJoCo offscreen rendering failed with MUJOCO_GL=egl")
 
-    monkeypatch.setattr(rl.evaluation.policy, "_render_qpos", no_gl)
+    monkeypatch.setattr(rl.evaluation.policy, "render_qpos", no_gl)
     with pytest.warns(UserWarning, match="no video"):
         result = evaluate(run, EvalConfig(num_envs=2, num_steps=3, video=str(tmp_path / "v.mp4")))
     saved = json.loads((run / "eval.json").read_text())
@@ -471,13 +471,13 @@ def test_eval_video_slow_motion_draws_every_step(tmp_path, speed: float) -> None
     import imageio.v2 as imageio
 
     from optimal_control.render import RenderUnavailableError
-    from rl.evaluation.policy import _render_qpos
+    from rl.evaluation.policy import render_qpos
     from robots import g1
 
     pose = np.concatenate([[0.0, 0.0, 0.8, 1.0, 0.0, 0.0, 0.0], g1.STAND_JOINT_POS_RAD])
     qpos = np.tile(pose, (8, 1))
     try:
-        path = _render_qpos(qpos, 0.02, str(tmp_path / "v.mp4"), "stand", ghost_qpos=None,
+        path = render_qpos(qpos, 0.02, str(tmp_path / "v.mp4"), "stand", ghost_qpos=None,
                             ghost_side_m=0.0, speed=speed)  # fmt: skip
     except RenderUnavailableError as err:
         pytest.skip(f"no offscreen rendering here: {err}")

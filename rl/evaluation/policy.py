@@ -166,7 +166,7 @@ def evaluate(run_dir: str | Path, cfg: EvalConfig = EvalConfig()) -> dict[str, A
         atomic_write_json(run_dir / EVAL_FILE, result)
         try:
             result["video"] = str(
-                _render_qpos(
+                render_qpos(
                     np.asarray(frames.qpos),
                     env.step_dt_s,
                     cfg.video,
@@ -344,7 +344,7 @@ def _extend_video(
             video.record(env)
 
 
-def _render_qpos(
+def render_qpos(
     qpos: np.ndarray,
     dt_s: float,
     path: str,

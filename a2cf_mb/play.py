@@ -1,0 +1,122 @@
+"""``a2cf-mb play SKILL|BUNDLE``: a learned skill on screen, from its bundle alone.
+
+The zoo (:data:`ZOO_DIR`, installed with the package) holds the best confirmed policy of each
+learned skill as a bundle (``policy.onnx``, ``policy.json``, for a tracking policy
+``reference.npz``) and ``judge.json``, the figures it was confirmed with. :func:`play` rolls a
+bundle out with the standalone runner (:mod:`a2cf_mb.deploy.run_bundle`: MuJoCo, onnxruntime and
+numpy, nothing of the training code) and renders robot 0 with the tracking camera: a tracking
+policy beside its reference (the ghost), a walk under the scripted commands (forward, backward,
+sideways, turn, stop), each frame captioned with its command.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ZOO_DIR = Path(__file__).resolve().parent / "zoo"
+"""The zoo: one bundle folder per learned skill."""
+JUDGE_FILE = "judge.json"
+"""A zoo bundle's confirmed figures (what its judge measured, where, from which run)."""
+
+
+@dataclass(frozen=True)
+class PlayConfig:
+    """What ``a2cf-mb play`` renders and where."""
+
+    out: str = ""  # video file to write; empty: play/<skill>.mp4 [-]
+    seconds: float = 0.0  # length of the episode played; 0: the bundle's whole episode [s]
+    seed: int = 0  # seed of the observation and initial-state noise [-]
+    noise: bool = True  # the observation noise the policy was trained with [-]
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.seconds <= 600.0:
+            raise ValueError(f"--seconds must be in [0, 600] s, got {self.seconds}")
+
+
+def zoo_skills() -> list[str]:
+    """The skills in the zoo, sorted (folder names under :data:`ZOO_DIR`)."""
+    if not ZOO_DIR.is_dir():
+        return []
+    return sorted(p.name for p in ZOO_DIR.iterdir() if (p / "policy.json").is_file())
+
+
+def resolve_bundle(target: str | Path) -> Path:
+    """A bundle folder from a zoo skill's name or a folder path; one-line ``ValueError`` else."""
+    path = Path(target)
+    if (path / "policy.json").is_file():
+        return path
+    if (ZOO_DIR / str(target) / "policy.json").is_file():
+        return ZOO_DIR / str(target)
+    skills = ", ".join(zoo_skills()) or "none installed"
+    raise ValueError(
+        f"{target!r} is neither a zoo skill ({skills}) nor a bundle folder (policy.json, "
+        "policy.onnx): name a skill or an exported policy's folder"
+    )
+
+
+def walk_script() -> tuple[tuple[float, tuple[float, float, float]], ...]:
+    """The walk video's commands: :data:`rl.tasks.walk.evaluation.DEMO_SCRIPT` as
+    ((duration [s], (vx, vy, yaw rate)), ...)."""
+    from rl.tasks.walk.evaluation import DEMO_SCRIPT
+
+    return tuple((seg.duration_s, seg.command) for seg in DEMO_SCRIPT)
+
+
+def _reads_velocity_command(bundle: dict[str, Any]) -> bool:
+    term = next((t for t in bundle["observation"]["terms"] if t["name"] == "command"), None)
+    return term is not None and any(p["name"] == "lin_vel_x" for p in term["parts"])
+
+
+def play(target: str | Path, cfg: PlayConfig = PlayConfig()) -> dict[str, Any]:
+    """Roll the bundle ``target`` (a zoo skill or a folder) out on one robot and write its video;
+    returns the runner's figures, the video's path and, for a zoo skill, its judge's figures.
+
+    Raises:
+        ValueError: ``target`` is no bundle.
+        optimal_control.render.RenderUnavailableError: no offscreen GL context or video writer.
+    """
+    from a2cf_mb.deploy.run_bundle import load_bundle, run_bundle
+    from optimal_control.render import check_offscreen_rendering
+    from rl.evaluation.policy import render_qpos
+
+    folder = resolve_bundle(target)
+    check_offscreen_rendering()  # before the rollout: a missing GL fails in one line, at once
+    bundle = load_bundle(folder)
+    name = folder.name
+    out = Path(cfg.out) if cfg.out else Path("play") / f"{name}.mp4"
+    script = walk_script() if _reads_velocity_command(bundle) else ()
+    dt_s = 1.0 / bundle["control"]["policy_rate_hz"]
+    num_steps = round(cfg.seconds / dt_s) if cfg.seconds else 0
+    if script and not num_steps:
+        num_steps = round(sum(d for d, _ in script) / dt_s)
+    qpos, ghost, captions = [], [], []
+
+    def record(q: np.ndarray, reference: np.ndarray | None, velocity: np.ndarray) -> None:
+        qpos.append(q)
+        if reference is not None:
+            ghost.append(reference)
+        vx, vy, wz = velocity
+        captions.append(f"command: vx {vx:+.2f} m/s  vy {vy:+.2f} m/s  yaw {wz:+.2f} rad/s")
+
+    result = run_bundle(
+        folder, num_envs=1, num_steps=num_steps, seed=cfg.seed, noise=cfg.noise, script=script,
+        on_step=record,
+    )  # fmt: skip
+    if not qpos:
+        raise ValueError(f"{folder}: the robot fell at the first step; nothing to render")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    video = render_qpos(
+        np.stack(qpos), dt_s, str(out), name,
+        ghost_qpos=np.stack(ghost) if ghost else None, ghost_side_m=1.0 if ghost else 0.0,
+        captions=captions if script else None,
+    )  # fmt: skip
+    result["video"] = str(video)
+    judge = folder / JUDGE_FILE
+    if judge.is_file():
+        result["judge"] = json.loads(judge.read_text())
+    return result
