@@ -79,6 +79,8 @@ def _differs(saved, today) -> bool:
         return False
     if isinstance(saved, dict) and isinstance(today, dict):
         return any(_differs(v, today.get(k)) for k, v in saved.items())
+    if isinstance(saved, list) and isinstance(today, list) and len(saved) == len(today):
+        return any(_differs(a, b) for a, b in zip(saved, today, strict=True))
     return saved != today
 
 
