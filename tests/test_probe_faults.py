@@ -19,6 +19,7 @@ import resource
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -422,3 +423,81 @@ def test_fields_of_a_saved_config_keep_their_meaning():
         task = get_task(name)
         assert dataclasses.replace(task) == task
     assert TrainConfig.from_dict(TrainConfig().to_dict()) == TrainConfig()
+
+
+# ------------------------------------------------------------------ kills and other users (slow)
+@pytest.mark.slow
+def test_sigkill_anywhere_in_the_run_then_resume_equals_the_uninterrupted_run(tmp_path):
+    """Kills at seeded random moments over the whole run (warm-up, rollouts, updates, saves,
+    export), not only inside the save window: the resume ends equal to the uninterrupted run."""
+    import random
+    import signal
+    import time
+
+    from test_train_faults import TINY, _actor, _assert_same, _train
+
+    start = time.time()
+    whole = _train(*TINY, "--out", str(tmp_path), "--run-name", "whole")
+    assert whole.wait(timeout=300) == 0, whole.stderr.read()
+    span_s = time.time() - start
+    reference = _actor(tmp_path / "whole")
+    rng = random.Random(56)
+    for i in range(3):
+        name = f"kill{i}"
+        proc = _train(*TINY, "--out", str(tmp_path), "--run-name", name)
+        time.sleep(rng.uniform(0.0, span_s))
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        if (tmp_path / name / CONFIG_FILE).exists():
+            resumed = _train("--resume", str(tmp_path / name))
+        else:  # killed before the run began: the same command again starts it in that folder
+            resumed = _train(*TINY, "--out", str(tmp_path), "--run-name", name)
+        assert resumed.wait(timeout=300) == 0, resumed.stderr.read()
+        _assert_same(reference, _actor(tmp_path / name))
+
+
+NOBODY = 65534
+
+
+def as_nobody() -> None:
+    """``preexec_fn``: drop to the unprivileged user ``nobody``."""
+    os.setgroups([])
+    os.setgid(NOBODY)
+    os.setuid(NOBODY)
+
+
+def nobody_can_run_python() -> str:
+    """Why an unprivileged user cannot run this interpreter here ("" when they can)."""
+    if os.geteuid() != 0:
+        return "needs root to become another user"
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", "import a2cf_mb.cli"], preexec_fn=as_nobody, cwd="/",
+            capture_output=True, timeout=120,
+        )  # fmt: skip
+    except OSError as err:
+        return f"user nobody cannot start {sys.executable} ({err.strerror})"
+    return "" if done.returncode == 0 else "user nobody cannot import a2cf_mb from here"
+
+
+@pytest.mark.slow
+def test_an_unprivileged_user_is_refused_a_run_folder_it_cannot_write(probe_run):
+    why = nobody_can_run_python()
+    if why:
+        pytest.skip(why)
+    root = Path(tempfile.mkdtemp(dir="/tmp"))
+    root.chmod(0o755)
+    try:
+        run = Path(shutil.copytree(probe_run, root / "run"))
+        before = snapshot(run)
+        done = subprocess.run(
+            [sys.executable, "-m", "a2cf_mb", "train", "--resume", str(run), "--iterations",
+             str(ITERATIONS + 1)],
+            preexec_fn=as_nobody, cwd="/", capture_output=True, text=True, timeout=300,
+            env={**os.environ, DEBUG_ENV: "0", TRACEBACK_DIR_ENV: "/tmp"},
+        )  # fmt: skip
+        assert done.returncode == 2, done.stderr
+        assert_one_line(done.stderr, "Permission denied", str(run))
+        assert snapshot(run) == before
+    finally:
+        shutil.rmtree(root)
