@@ -108,19 +108,21 @@ class CurriculumConfig:
     epsilon: float = 0.5  # tolerance band on |F|/|eta| before the bound moves [-]
     delta: float = 0.2  # relative bound change per update [-]
     negligible_force_n: float = 0.1  # applied-wrench norm under which assistance stops [N]
-    less_assist_progress: float = 0.8
-    """helped skill progress that switches on the less-assist reward [-]"""
-    skill_learned_progress: float = 0.6
-    """progress of skill_measure at which the skill counts as learned (the paper: 1.0) [-]"""
-    skill_measure: str = "helped"  # whose skill triggers the decay: "helped" (the paper's), "evaluation" or "alone" [-]
-    alone_share: float = 0.25
-    """share of the envs that never get help (fixed env ids); 0: the paper [-]"""
+    less_assist_progress: float = 0.8  # helped progress that turns on the less-assist reward [-]
+    # the paper's is 1.0
+    skill_learned_progress: float = 0.6  # progress of skill_measure that counts as learned [-]
+    # whose skill triggers the skill-learned decay; "helped" is the paper's
+    skill_measure: str = "helped"  # decay trigger: "helped", "evaluation" or "alone" [-]
+    # 0 is the paper's
+    alone_share: float = 0.25  # share of envs never helped (fixed env ids) [-]
     alone_window: int = 64  # finished episodes in the alone envs' skill window [-]
-    force_measure: str = "none"  # |F_k| of the force rule: "none" (skill decay only), "mean" (the paper), "quantile" [-]
-    force_quantile: float = 0.9
-    """quantile of the per-sample |F|/|eta| used by force_measure "quantile" [-]"""
-    anneal_iterations: int = 200  # N > 0: cap the bound at eta0 (1 - k / N) after update k (help gone after N); 0: off, the paper [-]
-    min_phase_samples: int = 1  # a phase needs this many (env, step) samples in a rollout for the force rule; 1 = the paper's rule [-]
+    # "none": the skill-learned decay only; "mean": the paper's; "quantile": force_quantile's
+    force_measure: str = "none"  # |F_k| of the force rule: "none", "mean" or "quantile" [-]
+    force_quantile: float = 0.9  # quantile of |F|/|eta| for force_measure "quantile" [-]
+    # the help is gone after N updates; 0 is the paper's
+    anneal_iterations: int = 200  # N: bound capped at eta0 (1 - k / N) at update k; 0: off [-]
+    # 1 is the paper's rule
+    min_phase_samples: int = 1  # least (env, step) samples of a phase for the force rule [-]
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared (values for which Algorithm 1 is
@@ -161,15 +163,14 @@ class CurriculumConfig:
 class WarmStartConfig:
     """DAgger rounds, regression and the head's initial std after the warm start."""
 
-    rounds: int = 3
-    """DAgger rounds (round 0 applies the coach's wrench, later ones the student's) [-]"""
+    # later rounds apply the student's wrench
+    rounds: int = 3  # DAgger rounds (round 0 applies the coach's wrench) [-]
     steps_per_round: int = 48  # env steps collected per round [-]
     epochs: int = 30  # passes over the dataset after each round [-]
     batch_size: int = 512  # regression mini-batch [-]
     learning_rate: float = 1e-3  # Adam learning rate of the assist head [-]
-    held_out: float = 0.2
-    """share of the last round's samples kept out of the fit for the report [-]"""
-    assist_std: float = 0.3  # std of the raw assist actions after the warm start (before tanh) [-]
+    held_out: float = 0.2  # last round's share held out of the fit for the report [-]
+    assist_std: float = 0.3  # std of the raw assist actions after the warm start [-]
     seed: int = 0  # shuffling seed [-]
 
     def __post_init__(self) -> None:
@@ -189,8 +190,8 @@ class WarmStartConfig:
 class CoachHelpConfig:
     """The coach's help (mode ``coach``); ``--coach-*`` are its flags."""
 
-    source: str = ""  # oracle artifact folder whose coach helps (mode coach); empty: none [-]
-    window: int = 256  # finished training episodes the failure rate is measured over [-]
+    source: str = ""  # artifact whose coach helps in mode coach; empty: none [-]
+    window: int = 256  # finished training episodes of the failure rate [-]
     failure_floor: float = 0.2  # failure rate at and below which the help is zero [-]
     max_scale: float = 0.6  # largest scale of the coach's wrench [-]
     max_force_n: float = 600.0  # the coach's wrench is clipped to this per axis [N]

@@ -42,11 +42,9 @@ class SceneConfig:
     """What the robot stands on and which of its geoms collide."""
 
     floor: bool = True  # a ground plane at z = 0
-    link_collisions: bool = True  # fitted capsules/boxes on the links collide with floor/terrain
+    link_collisions: bool = True  # fitted link capsules/boxes collide with floor and terrain
     terrain: TerrainFn | None = None  # adds terrain geoms to the spec; None: floor only
-    tracked_bodies: tuple[
-        str, ...
-    ] = ()  # links whose pose and velocity the state reports (EnvState.body_*) [-]
+    tracked_bodies: tuple[str, ...] = ()  # links whose pose and velocity EnvState.body_* hold [-]
 
 
 @dataclass(frozen=True)
@@ -73,10 +71,12 @@ class PushConfig:
     enabled: bool = True  # push the robots
     interval_range_s: tuple[float, float] = (3.0, 6.0)  # time between two pushes [s]
     velocity_xy_mps: float = 0.5  # largest +- horizontal base velocity change of a push [m/s]
-    train_velocity_xy_mps: float = 0.0
-    """largest push while training; 0: velocity_xy_mps. Evaluations of the policy alone always push at velocity_xy_mps, so training can push harder than the skill is judged at [m/s]"""
-    train_backward_share: float = 0.0
-    """share of training kicks turned to push the robot backwards (the kick's forward component in the robot's heading frame made negative; evaluations never): stand's and walk-flat's falls are backward kicks [-]"""
+    # evaluations of the policy alone always push at velocity_xy_mps, so training can push harder
+    # than the skill is judged at
+    train_velocity_xy_mps: float = 0.0  # largest push while training; 0: velocity_xy_mps [m/s]
+    # the kick's forward component in the robot's heading frame made negative (evaluations
+    # never): stand's and walk-flat's falls are backward kicks
+    train_backward_share: float = 0.0  # share of training kicks turned backwards [-]
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared; ``--task-pushes-*`` are its flags."""
@@ -100,7 +100,8 @@ class RandomizationConfig:
     payload_mass_range_kg: tuple[float, float] = (-1.0, 3.0)  # mass added to the payload body [kg]
     com_offset_range_m: tuple[float, float] = (-0.03, 0.03)  # payload-body CoM shift per axis [m]
     payload_body: str = "torso_link"  # body receiving payload and CoM offset (MuJoCo name)
-    model_groups: int = 0  # 0: one model copy per env, redrawn at each reset; G > 0: G copies drawn once, env i uses copy i % G
+    # 0: one model copy per env, redrawn at each reset
+    model_groups: int = 0  # G model copies drawn once, env i uses i % G; 0: per env [-]
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared; ``--task-randomization-*`` are its flags."""
@@ -131,7 +132,7 @@ class SkillTarget:
     task's evaluator at or below a bound."""
 
     min_survival: float = 0.9  # share of evaluation episodes that must not fail [-]
-    metric: str = ""  # task evaluator metric bounded above (e.g. skill_error_rad); empty: none
+    metric: str = ""  # evaluator metric held below max_metric; empty: none
     max_metric: float = 0.0  # the metric's upper bound, in its unit
 
     def __post_init__(self) -> None:
@@ -187,28 +188,18 @@ class TaskConfig:
     )  # phase machine config (has names, build)
     skill: Any = field(default_factory=SurvivalSkillConfig)  # skill-progress config (has build)
     less_assist_weight: float = 1.0  # weight of the less-assist reward once switched on [-]
-    oracle_tasks: tuple[str, ...] = field(
-        default=(),
-        metadata={"help": "other tasks whose solve-* artifacts warm-start this one [-]"},
-    )
-    # Joint PD targets around the command's reference joints (q_ref + scale a), not around the
-    # standing pose: zero action follows the reference (a tracking task's command must give it).
-    actions_around_reference: bool = False
-    # With actions_around_reference: the PD law gets the reference's joint rates and planned
-    # torques as feed-forward, tau = kp (q_ref - q) + kd (qd_ref - qd) + tau_ref + kp scale a (the
-    # target shifted by kd/kp qd_ref + tau_ref/kp): zero action is the oracle's own control.
-    action_feedforward: bool = False
-    drift_free_phases: tuple[str, ...] = field(
-        default=(),
-        metadata={
-            "help": "phases (by name) in which a tracking task's drift terminations (anchor "
-            "tilt, end-effector height) do not end an episode, e.g. a flip's flight: jump air "
-            "(a rotation running behind the reference is then caught up or landed, not cut "
-            "off) [-]"
-        },
-    )
-    evaluation: Any = None
-    """task-specific eval config (build(env) -> evaluator); None: generic eval"""
+    oracle_tasks: tuple[str, ...] = ()  # tasks whose solve-* artifacts also warm-start this one [-]
+    # Not around the standing pose: zero action follows the reference (a tracking task's command
+    # must give it).
+    actions_around_reference: bool = False  # PD targets around the reference, q_ref + scale a
+    # With actions_around_reference: tau = kp (q_ref - q) + kd (qd_ref - qd) + tau_ref + kp scale a
+    # (the target shifted by kd/kp qd_ref + tau_ref/kp): zero action is the oracle's own control.
+    action_feedforward: bool = False  # feed-forward of the reference's joint rates and torques
+    # A tracking task's drift terminations (anchor tilt, end-effector height), e.g. in a flip's
+    # flight: jump air (a rotation running behind the reference is then caught up or landed, not
+    # cut off).
+    drift_free_phases: tuple[str, ...] = ()  # phases in which drift terminations end no episode [-]
+    evaluation: Any = None  # task-specific eval config (build(env) -> evaluator); None: generic
     target: SkillTarget = field(default_factory=SkillTarget)  # the assistance-free skill target
     # The task's own PPO update, used where the run gives none (--ppo-gamma, ...):
     discount: float = 0.99  # PPO's discount per control step [-]

@@ -18,7 +18,7 @@ import torch
 from rsl_rl.env import VecEnv
 from rsl_rl.runners import OnPolicyRunner
 
-from optimal_control.files import atomic_write_json
+from optimal_control.files import atomic_write_json, atomic_write_text
 from rl.a2cf.config import get_mode
 from rl.a2cf.modes import MotionOnlyEnv
 from rl.agents.models import ASSIST_ACTION_DIM
@@ -55,17 +55,19 @@ class EvalConfig:
     num_envs: int = 16  # parallel environments [-]
     num_steps: int = 0  # control steps to roll out; 0: one full episode length [-]
     seed: int = 1  # env seed (differs from training's default 0) [-]
-    use_onnx: bool = True  # run the exported policy.onnx (else the last checkpoint's actor) [-]
-    video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl); empty: no video [-]
-    video_min_s: float = 6.0  # a shorter first episode (a fall) is followed by env 0's next ones up to this length, or to the reference's length on a tracking task [s]
-    video_ghost_side_m: float = 1.0  # the reference's ghost (tracking tasks) shifted to the camera's right; 0 overlays it on the robot's reference pose [m]
-    video_speed: float = 1.0  # playback speed of the video; below 1 every step is drawn and played slower (0.25: a flip's half second lasts 2 s) [-]
-    sim2sim: bool = (
-        False  # also roll the ONNX policy out in the second simulator (rl.evaluation.sim2sim)
-    )
-    scripted: bool = False
-    """every env follows the task's scripted command sequence instead of random draws (walk: 5 s
-    each of forward, turn, sideways, stop), scored per segment; a video then shows the sequence"""
+    use_onnx: bool = True  # run policy.onnx (else the last checkpoint's actor) [-]
+    video: str = ""  # mp4 of env 0's first episode (needs MUJOCO_GL=egl) [-]
+    # a shorter first episode (a fall) is followed by env 0's next ones up to this length, or to
+    # the reference's length on a tracking task
+    video_min_s: float = 6.0  # least video length: env 0's next episodes follow a fall [s]
+    # tracking tasks; 0 overlays the ghost on the robot's reference pose
+    video_ghost_side_m: float = 1.0  # the reference's ghost shifted to the camera's right [m]
+    # below 1 every step is drawn and played slower (0.25: a flip's half second lasts 2 s)
+    video_speed: float = 1.0  # video playback speed; below 1 every step is drawn [-]
+    sim2sim: bool = False  # also roll the ONNX policy out in rl.evaluation.sim2sim
+    # every env follows the task's scripted command sequence instead of random draws (walk: 5 s
+    # each of forward, turn, sideways, stop); a video then shows the sequence
+    scripted: bool = False  # follow the task's scripted commands, scored per segment
 
     def __post_init__(self) -> None:
         """Bound every field where it is declared; ``eval``'s flags have no prefix."""
@@ -398,8 +400,6 @@ def evaluate_checkpoints(
     to evaluate more envs. ``every_iterations``: only checkpoints whose iteration is a multiple of
     it; ``iterations``: only these checkpoints (each must be kept). Returns the rows of these
     envs and seed."""
-    from optimal_control.files import atomic_write_text
-
     run_dir = Path(run_dir)
     train_cfg = load_run_config(run_dir)
     task = resolve_task(train_cfg)
