@@ -29,7 +29,7 @@ class PlayConfig:
     """What ``a2cf-mb play`` renders and where."""
 
     out: str = ""  # video file to write; empty: play/<skill>.mp4 [-]
-    seconds: float = 0.0  # length of the episode played; 0: the bundle's whole episode [s]
+    seconds: float = 0.0  # episode length played; 0: the bundle's whole episode [s]
     seed: int = 0  # seed of the observation and initial-state noise [-]
     noise: bool = True  # the observation noise the policy was trained with [-]
 

@@ -19,8 +19,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "target",
-        help=f"a zoo skill ({', '.join(zoo_skills()) or 'none installed'}) or an exported "
-        "policy's folder (policy.json, policy.onnx)",
+        # a bundle folder: an exported policy's (policy.json, policy.onnx)
+        help=f"a zoo skill ({', '.join(zoo_skills()) or 'none installed'}) or a bundle folder",
     )
     add_config_arguments(parser, PlayConfig)
     parser.set_defaults(func=run)
