@@ -22,13 +22,17 @@ tracking policy, ``reference.npz``. From them this script:
   reference's last frame), and scores it: survival, and the task's errors (tracking: joints,
   pelvis, tracked links; walk: velocity).
 
-What it does not do: domain randomisation and pushes (the nominal model, no kicks), terrain (the
-floor only), and commands beyond a constant velocity and the gait clock.
+* draws, unless told not to, the domain randomisation (friction, payload, centre of mass: one
+  model copy per robot) and the pushes the policy was trained with.
+
+What it does not do: terrain (the floor only), and commands beyond a constant velocity (or a
+script of them) and the gait clock.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import hashlib
 import json
 import math
@@ -194,24 +198,26 @@ class Robots:
     """N robots (one ``MjData`` each) of one model, with the readings the policy and the judges
     need: joints in the bundle's order, pelvis pose and velocity, tracked links, ground contacts."""
 
-    def __init__(self, model: mujoco.MjModel, bundle: dict[str, Any], num_envs: int) -> None:
-        self.model = model
-        self.datas = [mujoco.MjData(model) for _ in range(num_envs)]
+    def __init__(
+        self, model: mujoco.MjModel, bundle: dict[str, Any], models: list[mujoco.MjModel]
+    ) -> None:
+        """Robots of ``model`` (names, sizes), robot ``i`` stepped with ``models[i]``."""
+        self.model, self.models = model, models
+        self.datas = [mujoco.MjData(m) for m in models]
         names = [j["name"] for j in bundle["joints"]]
         self.qadr = np.array([model.joint(n).qposadr[0] for n in names])
         self.dadr = np.array([model.joint(n).dofadr[0] for n in names])
         self.act = np.array([model.actuator(n).id for n in names])
         self.contact_bodies = list(bundle["model"]["contact_bodies"])
-        self.floor_body = 0
         ref = bundle.get("reference")
         self.bodies = [model.body(b).id for b in ref["bodies"]] if ref else []
 
     def set_state(self, qpos: np.ndarray, qvel: np.ndarray) -> None:
         """Start every robot from ``qpos`` (N, nq) and ``qvel`` (N, nv)."""
-        for data, q, v in zip(self.datas, qpos, qvel, strict=True):
-            mujoco.mj_resetData(self.model, data)
+        for model, data, q, v in zip(self.models, self.datas, qpos, qvel, strict=True):
+            mujoco.mj_resetData(model, data)
             data.qpos[:], data.qvel[:] = q, v
-            mujoco.mj_forward(self.model, data)
+            mujoco.mj_forward(model, data)
 
     def step(self, targets_rad: np.ndarray, active: np.ndarray, decimation: int) -> None:
         """Hold joint targets (N, 29) [rad] over ``decimation`` physics steps (active robots)."""
@@ -219,7 +225,7 @@ class Robots:
             if active[i]:
                 data.ctrl[self.act] = targets_rad[i]
                 for _ in range(decimation):
-                    mujoco.mj_step(self.model, data)
+                    mujoco.mj_step(self.models[i], data)
 
     def readings(self) -> dict[str, np.ndarray]:
         """Per robot: pelvis position, quaternion, linear velocity (world) and angular velocity
@@ -249,6 +255,55 @@ class Robots:
                     out[i] = True
                     break
         return out
+
+
+def randomized_models(model: mujoco.MjModel, bundle: dict[str, Any], num_envs: int, rng):
+    """One copy of ``model`` per robot with its own draw of the bundle's domain randomisation
+    (``episode.randomization``: friction, payload, centre-of-mass offset); ``model`` itself for
+    every robot when the policy was trained without."""
+    cfg = bundle["episode"]["randomization"]
+    if not cfg["enabled"]:
+        return [model] * num_envs
+    if "friction_geoms" not in cfg:
+        raise BundleError(
+            "the bundle's episode.randomization does not name its friction_geoms: export it "
+            "again, or play it on the nominal model (--no-randomize)"
+        )
+    geoms = [model.geom(name).id for name in cfg["friction_geoms"]]
+    body = model.body(cfg["payload_body"]).id
+    models = []
+    for _ in range(num_envs):
+        own = copy.copy(model)
+        own.geom_friction[geoms, 0] = rng.uniform(*cfg["friction_range"])
+        mass = model.body_mass[body] + rng.uniform(*cfg["payload_mass_range_kg"])
+        own.body_mass[body] = mass
+        own.body_inertia[body] = model.body_inertia[body] * (mass / model.body_mass[body])
+        own.body_ipos[body] = model.body_ipos[body] + rng.uniform(*cfg["com_offset_range_m"], 3)
+        models.append(own)
+    return models
+
+
+class Pushes:
+    """The bundle's pushes (``episode.pushes``): per robot a timer; when it runs out, a uniform
+    kick of the pelvis's world x and y velocity within +-``velocity_xy_mps``, a new timer."""
+
+    def __init__(self, bundle: dict[str, Any], num_envs: int, dt_s: float, rng) -> None:
+        self.cfg, self.dt_s, self.rng = bundle["episode"]["pushes"], dt_s, rng
+        self.timer_s = self._interval(num_envs)
+
+    def _interval(self, num: int) -> np.ndarray:
+        return self.rng.uniform(*self.cfg["interval_range_s"], num)
+
+    def apply(self, robots: Robots) -> None:
+        """Count one policy step down; kick the robots whose timer ran out."""
+        if not self.cfg["enabled"]:
+            return
+        self.timer_s -= self.dt_s
+        due = np.flatnonzero(self.timer_s <= 0)
+        v = self.cfg["velocity_xy_mps"]
+        for i in due:
+            robots.datas[i].qvel[0:2] += self.rng.uniform(-v, v, 2)
+        self.timer_s[due] = self._interval(due.size)
 
 
 # ------------------------------------------------------------------------------------ the command
@@ -463,12 +518,16 @@ def run_bundle(
     urdf: str | Path | None = None,
     script: tuple[tuple[float, tuple[float, float, float]], ...] = (),
     on_step: Callable[[np.ndarray, np.ndarray | None, np.ndarray], None] | None = None,
+    randomize: bool = True,
+    pushes: bool = True,
 ) -> dict[str, Any]:
     """Roll the bundle's policy out on ``num_envs`` robots, one episode each, for ``num_steps``
     policy steps (0: the episode's length cap); survival, episode length and the task's errors
     (frame-weighted means over the steps each robot was still in its episode after).
 
     ``noise``: the observation noise and initial-state noise the policy was trained with;
+    ``randomize``, ``pushes``: its domain randomisation and pushes (where it was trained with
+    them);
     ``velocity``: (vx [m/s], vy [m/s], yaw rate [rad/s]) for a policy that reads one (walk);
     ``script``: ((duration [s], velocity), ...) in place of it, by episode time (the last held);
     ``on_step(qpos, reference_qpos, velocity)`` sees robot 0 after each of its steps (a video's
@@ -480,7 +539,8 @@ def run_bundle(
     session = ort.InferenceSession(str(folder / bundle["onnx"]), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(seed)
     command = Command(bundle, num_envs, velocity)
-    robots = Robots(model, bundle, num_envs)
+    models = randomized_models(model, bundle, num_envs, rng) if randomize else [model] * num_envs
+    robots = Robots(model, bundle, models)
     robots.set_state(*initial_state(bundle, command, num_envs, rng, noise))
     control = bundle["control"]
     decimation = round(1.0 / control["policy_rate_hz"] / model.opt.timestep)
@@ -500,6 +560,7 @@ def run_bundle(
     scored = np.zeros(num_envs)
     last_action = np.zeros((num_envs, len(joints)))
     history = None
+    kicks = Pushes(bundle, num_envs, decimation * model.opt.timestep, rng) if pushes else None
     ends_s = np.cumsum([d for d, _ in script]) if script else None
     for k in range(num_steps):
         command.steps = k
@@ -519,6 +580,8 @@ def run_bundle(
         base = default if t is None else t["joint_pos_rad"]
         if t is not None and bundle["reference"].get("feedforward"):
             base = base + kd / kp * t["joint_vel_rps"] + t["joint_torque_nm"] / kp
+        if kicks is not None:
+            kicks.apply(robots)
         robots.step(base + scale * action, active, decimation)
         if on_step is not None and active[0]:
             ghost = command.reference_qpos(0) if command.ref is not None else None
@@ -548,8 +611,9 @@ def run_bundle(
     return {
         "bundle": str(folder),
         "task": bundle["task"],
-        "runner": "a2cf_mb/deploy/run_bundle.py: the bundle's G1 in MuJoCo, nominal model, no "
-        "pushes, flat floor",
+        "runner": "a2cf_mb/deploy/run_bundle.py: the bundle's G1 in MuJoCo, flat floor",
+        "randomized": bool(randomize and bundle["episode"]["randomization"]["enabled"]),
+        "pushes": bool(kicks is not None and bundle["episode"]["pushes"]["enabled"]),
         "num_envs": num_envs,
         "num_steps": num_steps,
         "observation_noise": bool(amplitude.any()),
@@ -567,6 +631,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--num-steps", type=int, default=0, help="policy steps; 0: the cap [-]")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise draws [-]")
     parser.add_argument("--no-noise", action="store_true", help="no observation / start noise")
+    parser.add_argument("--no-randomize", action="store_true", help="the nominal model only")
+    parser.add_argument("--no-pushes", action="store_true", help="no pushes")
     parser.add_argument("--command", type=float, nargs=3, default=(0.0, 0.0, 0.0),
                         metavar=("VX", "VY", "WZ"),
                         help="a walk's velocity command: vx, vy [m/s], yaw rate [rad/s]")  # fmt: skip
@@ -575,7 +641,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = run_bundle(
             args.folder, args.num_envs, args.num_steps, args.seed, not args.no_noise,
-            tuple(args.command), args.urdf,
+            tuple(args.command), args.urdf, randomize=not args.no_randomize,
+            pushes=not args.no_pushes,
         )  # fmt: skip
     except BundleError as err:
         print(f"run_bundle: {err}", file=sys.stderr)

@@ -9,9 +9,9 @@ Usage::
         [--policy-obs-of TASK] [--out FILE.json]
 
 Two rows per figure: ``quiet`` (no noise, no randomisation on either side: the same episodes, so
-the two should agree to rounding), and ``as trained`` (observation and start noise on both sides,
-the training env's domain randomisation too, which the runner does not draw: a spread of a few
-points is expected). ``REFERENCE`` and ``--policy-obs-of`` as in ``refresh_bundles.py``.
+the two should agree to rounding), and ``as trained`` (observation and start noise, domain
+randomisation and pushes on both sides, each from its own draws: the two agree within the spread
+of 32 draws). ``REFERENCE`` and ``--policy-obs-of`` as in ``refresh_bundles.py``.
 """
 
 from __future__ import annotations
@@ -84,7 +84,11 @@ def main(argv: list[str]) -> None:
     rows = {
         "quiet": {
             "training_env": _row(training_env_result(bundle, quiet(task), cfg, n, steps)),
-            "runner": _row(run_bundle(bundle, num_envs=n, num_steps=steps, noise=False)),
+            "runner": _row(
+                run_bundle(
+                    bundle, num_envs=n, num_steps=steps, noise=False, randomize=False, pushes=False
+                )  # fmt: skip
+            ),
         },
         "as_trained": {
             "training_env": _row(training_env_result(bundle, task, cfg, n, steps)),

@@ -140,8 +140,21 @@ def episode_facts(env: Any) -> dict[str, Any]:
         ],
         "time_out": "an episode that reaches max_steps, or a tracking reference's last frame, "
         "ends without failing",
-        "randomization": dataclasses.asdict(task.randomization),
-        "pushes": dataclasses.asdict(task.pushes),
+        "randomization": {
+            **dataclasses.asdict(task.randomization),
+            "friction_geoms": [
+                env.physics.model.geom(int(g)).name for g in env.randomizer.writer.contact_geoms
+            ],
+            "how": "per robot, uniform draws: the sliding friction of friction_geoms (soles, "
+            "ground); a payload [kg] added to payload_body's mass, its inertia scaled by the "
+            "mass ratio; its centre of mass shifted by com_offset_range_m per axis",
+        },
+        "pushes": {
+            **dataclasses.asdict(task.pushes),
+            "how": "per robot a timer drawn from interval_range_s [s]; when it runs out, before "
+            "the physics of that policy step, the pelvis's world x and y velocity each change by "
+            "a uniform draw within +-velocity_xy_mps (the evaluation's size), and a new timer",
+        },
     }
 
 
