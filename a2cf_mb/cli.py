@@ -291,6 +291,8 @@ def main(argv: list[str] | None = None) -> int:
     debug = os.environ.get(DEBUG_ENV) == "1"
     if argv[:1] == ["--debug"]:
         debug, argv = True, argv[1:]
+    if argv and argv[0] in {command_name(m) for m in COMMAND_MODULES}:
+        command = f"a2cf-mb {argv[0]}"  # named in a refusal that comes before parsing
     try:
         check_gl_setting()
         args = build_parser(argv[0] if argv else None).parse_args(argv)

@@ -300,7 +300,7 @@ def test_a_mujoco_gl_that_names_no_backend_is_one_line(probe_run, tmp_path, args
     before = snapshot(probe_run)
     done = cli_subprocess(*args, MUJOCO_GL="bogus")
     assert done.returncode == 2, done.stderr
-    assert_one_line(done.stderr, "MUJOCO_GL=bogus", "MUJOCO_GL=egl")
+    assert_one_line(done.stderr, f"a2cf-mb {args[0]}: error", "MUJOCO_GL=bogus", "MUJOCO_GL=egl")
     assert snapshot(probe_run) == before
     assert not out.exists()
 
@@ -370,8 +370,9 @@ def test_a_rendering_failure_keeps_the_evaluation(capsys, monkeypatch, run):
 # ------------------------------------------------------------------ the right flag, advice, litter
 @pytest.mark.parametrize(
     "args",
-    [["train", "--resume", "RUN"], ["eval-curve", "RUN"]],
-    ids=["resume", "eval-curve"],
+    [["train", "--resume", "RUN"], ["eval", *SMALL_EVAL, "RUN"],
+     ["eval", "--no-use-onnx", *SMALL_EVAL, "RUN"], ["eval-curve", "RUN"]],
+    ids=["resume", "eval", "eval-no-onnx", "eval-curve"],
 )  # fmt: skip
 def test_a_run_without_its_config_says_to_restore_it(capsys, run, args):
     (run / CONFIG_FILE).unlink()
@@ -501,3 +502,58 @@ def test_an_unprivileged_user_is_refused_a_run_folder_it_cannot_write(probe_run)
         assert snapshot(run) == before
     finally:
         shutil.rmtree(root)
+
+
+# ------------------------------------------------------------------ damaged run files (slow)
+RUN_FILES = (
+    CONFIG_FILE, "git.json", f"{CHECKPOINT_DIR}/last.pt", f"{CHECKPOINT_DIR}/model_2.pt",
+    f"{CHECKPOINT_DIR}/model_4.pt", "curriculum.jsonl", METRICS_FILE, METRICS_LOG, "policy.onnx",
+    "policy.json", "events", EVAL_FILE, "evals_checkpoints.jsonl", LOCK_FILE,
+)  # fmt: skip
+"""Every kind of file a run folder holds ("events": its TensorBoard file)."""
+
+RUN_COMMANDS = {
+    "resume": ["train", "--resume", "RUN"],
+    "eval": ["eval", *SMALL_EVAL, "RUN"],
+    "eval-checkpoint": ["eval", "--no-use-onnx", *SMALL_EVAL, "RUN"],
+    "eval-curve": ["eval-curve", "--num-envs", "2", "RUN"],
+    "compare": ["compare", "RUN", "--out", "OUT"],
+}
+DAMAGE = {
+    "half": lambda data: data[: len(data) // 2],
+    "empty": lambda data: b"",
+    "random": lambda data: bytes(range(256)) * 8,
+    "deleted": None,
+}
+
+
+def damage_file(run: Path, name: str, how: str) -> None:
+    """Damage (or delete) one file of ``run``; files a finished run may lack are made first."""
+    path = next(run.glob("events.out.tfevents*")) if name == "events" else run / name
+    if not path.exists():  # eval.json, eval-curve's rows and the lock come with use
+        path.write_text(json.dumps({"iteration": 2, "seed": 1}) + "\n")
+    if DAMAGE[how] is None:
+        path.unlink()
+    else:
+        path.write_bytes(DAMAGE[how](path.read_bytes()))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", sorted(RUN_COMMANDS))
+@pytest.mark.parametrize("how", sorted(DAMAGE))
+@pytest.mark.parametrize("name", RUN_FILES)
+def test_a_damaged_run_file_is_read_or_refused_in_one_line(
+    capsys, run, tmp_path, name, how, command
+):
+    """Whatever file is damaged, each command either works (a warning at most) or refuses in one
+    line with exit 2 and the folder unchanged; never a traceback or an unexpected error."""
+    damage_file(run, name, how)
+    before = snapshot(run)
+    out = tmp_path / "compare"
+    args = [str(out) if a == "OUT" else run if a == "RUN" else a for a in RUN_COMMANDS[command]]
+    code, err = run_cli(capsys, *args)
+    assert code in (0, 2), err
+    assert "Traceback" not in err and "unexpected error" not in err, err
+    if code == 2:
+        assert_one_line(err)
+        assert snapshot(run) == before

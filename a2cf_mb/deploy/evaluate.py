@@ -12,10 +12,16 @@ RUN_CONFIG_FILE = "config.json"
 """What makes a folder a run folder (``rl.runs.folder.CONFIG_FILE``) rather than a bundle."""
 
 
+RUN_ONLY_FILES = ("checkpoints", "metrics.jsonl")
+"""What only a run folder holds: one of them without ``config.json`` is a run that lost its
+config (``eval`` then says to restore it), not a bundle."""
+
+
 def is_bundle_folder(folder: str | Path) -> bool:
     """``folder`` holds an exported policy's ``policy.json`` and is no run folder."""
     folder = Path(folder)
-    return (folder / "policy.json").is_file() and not (folder / RUN_CONFIG_FILE).is_file()
+    run_files = [name for name in (RUN_CONFIG_FILE, *RUN_ONLY_FILES) if (folder / name).exists()]
+    return (folder / "policy.json").is_file() and not run_files
 
 
 def evaluate_bundle(folder: str | Path, cfg: Any) -> dict[str, Any]:
