@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import ClipConfig, reference_from_configurations
 from optimal_control.reference import Reference
-from optimal_control.validation import require_finite_fields, require_within
+from optimal_control.validation import require_finite_fields, require_ranges, require_within
 from optimal_control.walk import IK_DT_RANGE_S, _placo_robot
 from robots import g1
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
@@ -62,6 +62,13 @@ class DanceConfig:
             why="the IK runs the dance's length / ik_dt_s steps and follows the keyframes between "
             "them",
         )  # fmt: skip
+        require_ranges(self, {
+            "output_fps": (1.0, 1000.0, "1/s"), "groove_depth_m": (0.0, 1.0, "m"),
+            "sway_m": (0.0, 1.0, "m"), "bounce_m": (0.0, 1.0, "m"),
+            "squat_depth_m": (0.0, 1.0, "m"), "turn_rad": (0.0, 3.15, "rad"),
+            "turn_step_rad": (0.0, 3.15, "rad"), "step_height_m": (0.0, 1.0, "m"),
+            "wave_hz": (0.0, 20.0, "1/s"), "smoothing_window_s": (0.0, 5.0, "s"),
+        })  # fmt: skip
 
 
 def _smoothstep(s: np.ndarray) -> np.ndarray:

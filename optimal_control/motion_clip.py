@@ -40,7 +40,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from optimal_control.files import read_npz
 from optimal_control.reference import NQ, Reference
-from optimal_control.validation import require_finite_fields
+from optimal_control.validation import require_finite_fields, require_ranges
 from robots import g1
 
 if TYPE_CHECKING:
@@ -94,8 +94,22 @@ class ClipConfig:
     max_base_acceleration_m_s2: float = 300.0  # largest base acceleration over 3 frames [m/s^2]
 
     def __post_init__(self) -> None:
-        """Reject NaN / inf values, naming the field and its flag."""
+        """Reject NaN / inf values and values outside any clip, naming the field and its flag."""
         require_finite_fields(self)
+        require_ranges(self, {
+            "source_fps": (1.0, 10_000.0, "1/s"), "target_fps": (1.0, 10_000.0, "1/s"),
+            "smoothing_window_s": (0.0, 5.0, "s"), "polyorder": (0, 20, ""),
+            "min_frames": (2, 100_000_000, ""), "joint_limit_tolerance_rad": (0.0, 3.15, "rad"),
+            "quat_norm_tolerance": (0.0, 1.0, ""), "contact_height_m": (0.0, 1.0, "m"),
+            "contact_release_height_m": (0.0, 1.0, "m"), "contact_speed_m_s": (0.0, 10.0, "m/s"),
+            "contact_release_speed_m_s": (0.0, 10.0, "m/s"),
+            "support_fallback_height_m": (0.0, 2.0, "m"),
+            "ballistic_accel_m_s2": (0.0, 100.0, "m/s^2"), "ground_percentile": (0.0, 100.0, "%"),
+            "despike_threshold_m": (0.0, 10.0, "m"), "max_no_contact_share": (0.0, 1.0, ""),
+            "warn_no_contact_share": (0.0, 1.0, ""), "max_frames": (0, 100_000_000, ""),
+            "max_base_speed_m_s": (0.0, 1000.0, "m/s"),
+            "max_base_acceleration_m_s2": (0.0, 100_000.0, "m/s^2"),
+        }, prefix="clip_")  # fmt: skip
 
 
 def read_clip(path: str | Path, cfg: ClipConfig = ClipConfig()) -> tuple[np.ndarray, float]:

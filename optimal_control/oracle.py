@@ -26,7 +26,7 @@ from optimal_control.artifact import VIDEO_FILE, OracleArtifact, build_artifact
 from optimal_control.bounds import BoundRule, envelope_per_phase
 from optimal_control.files import check_output_folder
 from optimal_control.reference import Reference
-from optimal_control.validation import require_finite_fields
+from optimal_control.validation import require_finite_fields, require_ranges
 from optimal_control.wrench_qp import WrenchProfile, WrenchQP, WrenchQPConfig
 
 
@@ -60,6 +60,13 @@ class OracleConfig:
                 f"--phase-bin-s must be >= 0 s (0: the reference's own phases), got "
                 f"{self.phase_bin_s}"
             )
+        require_ranges(self, {
+            "alphas": (0.0, 10.0, ""), "novice_alpha": (0.0, 10.0, ""),
+            "percentile": (0.0, 100.0, "percent"), "margin": (0.0, 100.0, ""),
+            "floor_force_n": (0.0, 1e4, "N"), "floor_torque_nm": (0.0, 1e4, "N m"),
+            "friction_coefficient": (0.0, 10.0, ""), "phase_bin_s": (0.0, 3600.0, "s"),
+            "video_width": (16, 8192, "px"), "video_height": (16, 8192, "px"),
+        })  # fmt: skip
 
     def rule(self) -> BoundRule:
         """The eta0 rule of this config."""

@@ -48,3 +48,25 @@ def require_within(
         f"{type(cfg).__name__}.{name} ({flag_name(name)}) is {value:g} {unit}; give a value in "
         f"{bracket}{low:g}, {high:g}] {unit}: {why}."
     )
+
+
+PHYSICAL = "outside anything a G1 motion or its solve could use"
+"""Why a plain physical bound is there (:func:`require_ranges`)."""
+
+
+def require_ranges(
+    cfg: Any, ranges: dict[str, tuple[float, float, str]], why: str = PHYSICAL, prefix: str = ""
+) -> None:
+    """:func:`require_within` for each field of ``ranges`` (name -> low, high, unit); a tuple
+    field has each entry checked; ``prefix``: the flags' (``clip_`` for ``--clip-*``). Every
+    number of a config gets a range where it is declared: ``--alphas 1e30`` is refused by name,
+    not carried into a solve."""
+    for name, (low, high, unit) in ranges.items():
+        value = getattr(cfg, name)
+        for item in value if isinstance(value, tuple | list) else (value,):
+            if not low <= item <= high:
+                bracket = f"[{low:g}, {high:g}] {unit}".rstrip()
+                raise ValueError(
+                    f"{type(cfg).__name__}.{name} ({flag_name(prefix + name)}) is "
+                    f"{f'{item:g} {unit}'.rstrip()}; give a value in {bracket}: {why}."
+                )

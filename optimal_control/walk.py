@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from optimal_control.motion_clip import differentiate
 from optimal_control.reference import Reference
-from optimal_control.validation import require_finite_fields, require_within
+from optimal_control.validation import require_finite_fields, require_ranges, require_within
 from robots import g1
 from robots.assets import g1_urdf_path
 from robots.pinocchio_model import G1Pinocchio, build_pinocchio_model
@@ -76,6 +76,16 @@ class WalkConfig:
             self, "ik_dt_s", *IK_DT_RANGE_S, "s",
             why="the IK runs duration / ik_dt_s steps and follows placo's trajectory between them",
         )  # fmt: skip
+        require_ranges(self, {
+            "vx": (-10.0, 10.0, "m/s"), "vy": (-10.0, 10.0, "m/s"), "wz": (-10.0, 10.0, "rad/s"),
+            "output_fps": (1.0, 1000.0, "1/s"), "com_height_m": (0.2, 1.2, "m"),
+            "feet_spacing_m": (0.0, 1.0, "m"), "single_support_s": (0.05, 10.0, "s"),
+            "double_support_ratio": (0.0, 20.0, ""), "startend_double_support_ratio": (0.0, 50.0, ""),
+            "foot_height_m": (0.0, 1.0, "m"), "zmp_margin_m": (0.0, 0.2, "m"),
+            "max_step_forward_m": (0.0, 2.0, "m"), "max_step_backward_m": (0.0, 2.0, "m"),
+            "max_step_lateral_m": (0.0, 2.0, "m"), "max_step_yaw_rad": (0.0, 3.15, "rad"),
+            "smoothing_window_s": (0.0, 5.0, "s"),
+        })  # fmt: skip
 
 
 def placo_urdf_text(urdf_path: Path | None = None) -> str:

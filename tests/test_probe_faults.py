@@ -216,6 +216,8 @@ def command_line(command: str, flag: str, values: list[str], run: Path, out: Pat
     """The command line of one numeric case (train writes under ``out``, eval reads ``run``)."""
     if command == "train":
         return ["train", "--out", out, "--run-name", "r", flag, *values]
+    if command.startswith("solve-"):
+        return [command, "--out", out, "--no-video", flag, *values]
     extra = ["--video", out / "v.mp4"] if flag.startswith("--video-") else []
     return [command, run, *extra, flag, *values]
 
@@ -259,7 +261,7 @@ def numeric_flags(command: str) -> list[tuple[str, str]]:
 NONSENSE = {"float": ("1e30", "-1e30", "nan", "inf"), "int": ("10000000000", "-10000000000", "nan")}
 MATRIX = [
     pytest.param(command, flag, value, id=f"{command} {flag}={value}")
-    for command in ("train", "eval", "eval-curve")
+    for command in ("train", "eval", "eval-curve", "solve-walk", "solve-dance")
     for flag, kind in numeric_flags(command)
     if flag != "--iterations" or command == "train"  # eval-curve's K: a checkpoint's name
     for value in NONSENSE[kind]
