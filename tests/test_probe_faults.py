@@ -559,3 +559,58 @@ def test_a_damaged_run_file_is_read_or_refused_in_one_line(
     if code == 2:
         assert_one_line(err)
         assert snapshot(run) == before
+
+
+# ------------------------------------------------------------------ lock files
+def lock_text(kind: str) -> bytes:
+    """The bytes of a ``run.lock`` of one kind."""
+    import socket
+
+    holder = {"host": socket.gethostname(), "started_utc": "2026-01-01T00:00:00Z",
+              "command": "a2cf-mb train", "process": None}  # fmt: skip
+    if kind == "empty":
+        return b""
+    if kind == "junk":
+        return bytes(range(256))
+    if kind == "list":
+        return b"[1, 2]"
+    if kind == "dead pid":
+        child = subprocess.Popen([sys.executable, "-c", "pass"])
+        child.wait()
+        return json.dumps({**holder, "pid": child.pid}).encode()
+    if kind == "reused pid":  # a live pid whose start time is not the recorded one
+        return json.dumps({**holder, "pid": os.getppid(), "process": "boot:0"}).encode()
+    if kind == "live pid":
+        return json.dumps({**holder, "pid": os.getppid()}).encode()
+    if kind == "other host":
+        return json.dumps({**holder, "pid": 1, "host": "elsewhere"}).encode()
+    raise ValueError(kind)
+
+
+# (kind, age [s], taken over): a lock whose holder is gone is taken over with a warning naming
+# it; a live holder's, another host's or one being written right now refuses in one line
+LOCK_CASES = [
+    ("empty", 0, False), ("empty", 3600, True), ("junk", 0, False), ("junk", 3600, True),
+    ("list", 3600, True), ("dead pid", 0, True), ("reused pid", 0, True), ("live pid", 3600, False),
+    ("other host", 3600, False),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("kind", "age_s", "taken"), LOCK_CASES)
+def test_a_lock_file_is_taken_over_or_refused_by_what_it_says(tmp_path, kind, age_s, taken):
+    from rl.runs.folder import RunFolderBusyError
+
+    lock = tmp_path / LOCK_FILE
+    lock.write_bytes(lock_text(kind))
+    old = lock.stat().st_mtime - age_s
+    os.utime(lock, (old, old))
+    if taken:
+        with pytest.warns(StaleLockWarning, match=str(lock)), RunFolderLock(tmp_path, False):
+            assert json.loads(lock.read_text())["pid"] == os.getpid()
+        assert not lock.exists()
+    else:
+        before = lock.read_bytes()
+        with pytest.raises(RunFolderBusyError, match="is being written by") as err:
+            RunFolderLock(tmp_path, create=False).acquire()
+        assert str(lock) in str(err.value) and "\n" not in str(err.value)
+        assert lock.read_bytes() == before
