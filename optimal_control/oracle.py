@@ -188,6 +188,8 @@ def solve_reference_oracle(
                 art.video = VIDEO_FILE
             except RenderUnavailableError as err:
                 art.video_note = f"no video: {err}"
+            except Exception as err:  # a GL failure mid-video: the solve's artifact still counts
+                art.video_note = f"no video: rendering failed ({type(err).__name__}: {err})"
         else:
             art.video_note = "no video: disabled (--no-video)"
         if write_extra is not None:

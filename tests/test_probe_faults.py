@@ -614,3 +614,22 @@ def test_a_lock_file_is_taken_over_or_refused_by_what_it_says(tmp_path, kind, ag
             RunFolderLock(tmp_path, create=False).acquire()
         assert str(lock) in str(err.value) and "\n" not in str(err.value)
         assert lock.read_bytes() == before
+
+
+def test_a_rendering_failure_keeps_the_oracle_artifact(capsys, monkeypatch, tmp_path):
+    """solve-walk / solve-dance render after the whole solve: a GL failure there is a note in
+    the artifact, never a lost solve."""
+    import optimal_control.render
+
+    def broken(*args, **kwargs):
+        raise AttributeError("'NoneType' object has no attribute 'glGetError'")
+
+    monkeypatch.setattr(optimal_control.render, "render_reference", broken)
+    out = tmp_path / "walk"
+    code, err = run_cli(
+        capsys, "solve-walk", "--duration", "2", "--alphas", "1.0", "--novice-alpha", "1.0",
+        "--no-progress", "--out", out,
+    )  # fmt: skip
+    assert code == 0, err
+    notes = [p.read_text() for p in out.glob("*.json")]
+    assert any("no video: rendering failed (AttributeError" in text for text in notes)
