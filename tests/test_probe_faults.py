@@ -108,6 +108,9 @@ def test_a_run_with_rows_but_no_checkpoint_is_refused_not_restarted(capsys, run)
                  "new run"),
     )  # fmt: skip
     assert "from iteration 0" not in err
+    # flags a resume would not apply: still the one line of the refusal, no warning before it
+    assert_refused(capsys, run, "train", "--resume", run, "--ppo-lam", "0.9",
+                   needles=("no checkpoint", "restore"))  # fmt: skip
 
 
 @pytest.mark.parametrize("use_onnx", ["--use-onnx", "--no-use-onnx"])

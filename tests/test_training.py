@@ -288,7 +288,12 @@ def test_half_created_and_damaged_runs_resume_or_say_what_to_do(tmp_path, capsys
     whole = train(dataclasses.replace(cfg, run_name="whole"), verbose=False)
     run = train(dataclasses.replace(cfg, run_name="half"), verbose=False).run_dir
     for path in (run / CHECKPOINT_DIR).iterdir():
-        path.unlink()  # as if killed during iteration 0
+        path.unlink()
+    # its logs show 2 iterations: starting it again would lose them, so it is refused
+    with pytest.raises(ValueError, match="2 completed iterations logged but no checkpoint"):
+        train(TrainConfig(resume=str(run), iterations=2), verbose=False)
+    for name in ("metrics.jsonl", "metrics.json"):
+        (run / name).unlink()  # now as if killed during iteration 0 (it logged nothing)
     again = train(TrainConfig(resume=str(run), iterations=2), verbose=False)
     assert "no checkpoint yet" in capsys.readouterr().err
     assert read_jsonl(run / CURRICULUM_LOG) == read_jsonl(whole.run_dir / CURRICULUM_LOG)
@@ -323,6 +328,8 @@ def test_eval_without_a_gl_driver_keeps_its_metrics(tmp_path, monkeypatch) -> No
         raise RenderUnavailableError("MuJoCo offscreen rendering failed with MUJOCO_GL=egl")
 
     monkeypatch.setattr(rl.evaluation.policy, "render_qpos", no_gl)
+    # past the up-front check (on a machine without GL that check refuses before the rollout)
+    monkeypatch.setattr("optimal_control.render.check_offscreen_rendering", lambda: None)
     with pytest.warns(UserWarning, match="no video"):
         result = evaluate(run, EvalConfig(num_envs=2, num_steps=3, video=str(tmp_path / "v.mp4")))
     saved = json.loads((run / "eval.json").read_text())

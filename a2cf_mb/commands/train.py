@@ -84,7 +84,7 @@ def task_overrides(args: argparse.Namespace) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Build the TrainConfig from the flags and call :func:`rl.training.runner.train`."""
-    from rl.runs.folder import load_run_config, logged_iterations
+    from rl.runs.folder import check_resume, load_run_config, logged_iterations
     from rl.tasks.registry import get_task
     from rl.training.config import TrainConfig
     from rl.training.runner import train
@@ -93,16 +93,6 @@ def run(args: argparse.Namespace) -> int:
     if args.resume:
         saved = load_run_config(args.resume)  # first: a folder that holds no run is one line
         given = given_flags(args)
-        ignored = [d for d in given if d not in ALWAYS_APPLIED_ON_RESUME]
-        ignored += ["task-reward-weight"] * bool(args.task_reward_weight)
-        ignored += ["task-term-param"] * bool(args.task_term_param)
-        if ignored:
-            flags = " ".join("--" + d.replace(".", "-").replace("_", "-") for d in ignored)
-            print(
-                f"a2cf-mb train: warning: --resume continues {args.resume} with its saved config; "
-                f"not applied: {flags}",
-                file=sys.stderr,
-            )
         # without --iterations: the run's own total, or what it has done where a resume went
         # past it (a run's config keeps the total it began with)
         iterations = (
@@ -110,6 +100,18 @@ def run(args: argparse.Namespace) -> int:
             if "iterations" in given
             else max(saved.iterations, logged_iterations(Path(args.resume)))
         )
+        ignored = [d for d in given if d not in ALWAYS_APPLIED_ON_RESUME]
+        ignored += ["task-reward-weight"] * bool(args.task_reward_weight)
+        ignored += ["task-term-param"] * bool(args.task_term_param)
+        if ignored:
+            # a resume that will be refused says only why, not what it would not apply
+            check_resume(Path(args.resume), iterations, quiet=True)
+            flags = " ".join("--" + d.replace(".", "-").replace("_", "-") for d in ignored)
+            print(
+                f"a2cf-mb train: warning: --resume continues {args.resume} with its saved config; "
+                f"not applied: {flags}",
+                file=sys.stderr,
+            )
         cfg = TrainConfig(resume=args.resume, iterations=iterations)
     else:
         cfg = config_from_args(TrainConfig, args, task_overrides=overrides)

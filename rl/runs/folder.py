@@ -518,12 +518,13 @@ def _readable(path: Path) -> bool:
 
 
 def newest_readable_checkpoint(
-    run_dir: Path, command: str, doing: str, note: str = ""
+    run_dir: Path, command: str, doing: str, note: str = "", quiet: bool = False
 ) -> Path | None:
     """``checkpoints/last.pt``, or when it cannot be read (a disk fault: it is written atomically)
     the newest readable ``model_<k>.pt``, with a warning from ``command`` that it is ``doing``
-    (``resuming``) from that one instead (``note``: what that means); None when the run has no
-    checkpoint. Only unreadable checkpoints: :class:`DamagedRunFileError` naming the folder."""
+    (``resuming``) from that one instead (``note``: what that means; ``quiet``: no warning);
+    None when the run has no checkpoint. Only unreadable checkpoints:
+    :class:`DamagedRunFileError` naming the folder."""
     folder = run_dir / CHECKPOINT_DIR
     last = folder / LAST_CHECKPOINT
     kept = sorted(
@@ -537,6 +538,8 @@ def newest_readable_checkpoint(
         return last
     for candidate in kept:
         if _readable(candidate):
+            if quiet:
+                return candidate
             print(
                 f"{command}: warning: {last} cannot be read; {doing} from {candidate.name}, "
                 f"the newest readable checkpoint{note}",
@@ -549,11 +552,11 @@ def newest_readable_checkpoint(
     )
 
 
-def resumable_checkpoint(run_dir: Path) -> Path | None:
+def resumable_checkpoint(run_dir: Path, quiet: bool = False) -> Path | None:
     """The checkpoint a resume continues from (:func:`newest_readable_checkpoint`; iterations
     after a fallback checkpoint are redone)."""
     return newest_readable_checkpoint(
-        run_dir, "a2cf-mb train", "resuming", " (later iterations are redone)"
+        run_dir, "a2cf-mb train", "resuming", " (later iterations are redone)", quiet=quiet
     )
 
 
@@ -707,6 +710,24 @@ def require_writable(run_dir: Path, checkpoint: Path | None) -> None:
         )
 
 
+def check_resume(
+    run_dir: Path, iterations: int, writable: bool = True, quiet: bool = False
+) -> Path | None:
+    """Everything a resume of ``run_dir`` to ``iterations`` in all needs, checked before the
+    folder changes (a refused resume leaves every byte as it was): a checkpoint, or no logged
+    iteration to lose; a total no smaller than what is done; with ``writable``, room and
+    permission to write. Returns the checkpoint it continues from (None: from iteration 0);
+    ``quiet``: no warning about a fallback checkpoint (a check ahead of the resume itself)."""
+    checkpoint = resumable_checkpoint(run_dir, quiet=quiet)
+    if checkpoint is None:
+        require_nothing_to_lose(run_dir)
+    else:
+        require_enough_iterations(run_dir, checkpoint, iterations)
+    if writable:
+        require_writable(run_dir, checkpoint)
+    return checkpoint
+
+
 @dataclass(frozen=True)
 class StartPoint:
     """Where a run starts (:func:`start_point`)."""
@@ -729,16 +750,8 @@ def start_point(cfg: TrainConfig, run_dir: Path) -> StartPoint:
         return StartPoint(cfg, None, None)
     saved = load_run_config(run_dir)
     cfg = replace(saved, iterations=cfg.iterations, resume=cfg.resume)
-    # Everything a resume needs is checked before the folder changes (a refused resume leaves
-    # every byte as it was): a checkpoint, or no logged iteration to lose; a total no smaller
-    # than what is done; room and permission to write.
-    checkpoint = resumable_checkpoint(run_dir)
-    if checkpoint is None:
-        require_nothing_to_lose(run_dir)
-    else:
-        require_enough_iterations(run_dir, checkpoint, cfg.iterations)
+    checkpoint = check_resume(run_dir, cfg.iterations, writable=main)
     if main:
-        require_writable(run_dir, checkpoint)
         # what writers killed mid-write left (a SIGKILL during a save): never read
         for folder in (run_dir, run_dir / CHECKPOINT_DIR, run_dir / EVALS_DIR):
             remove_stale_temp_files(folder)
