@@ -636,3 +636,23 @@ def test_a_rendering_failure_keeps_the_oracle_artifact(capsys, monkeypatch, tmp_
     assert code == 0, err
     notes = [p.read_text() for p in out.glob("*.json")]
     assert any("no video: rendering failed (AttributeError" in text for text in notes)
+
+
+@pytest.mark.parametrize(
+    ("edit", "needles"),
+    [("degrees", ("look like degrees", "convert them to radians")),
+     ("nan", ("NaN/inf at frame 5", "--clip-frames A:B"))],
+)  # fmt: skip
+def test_a_clip_in_degrees_or_with_nan_says_what_to_do(capsys, tmp_path, edit, needles):
+    import numpy as np
+
+    rows = np.zeros((40, 36))
+    rows[:, 2], rows[:, 6] = 0.75, 1.0  # standing height, identity quaternion (xyzw)
+    rows[:, 7 + 3] = 20.0 if edit == "degrees" else 0.3  # a knee, in degrees or radians
+    if edit == "nan":
+        rows[5, 10] = np.nan
+    clip = tmp_path / "clip.csv"
+    np.savetxt(clip, rows, delimiter=",")
+    out = tmp_path / "art"
+    assert_refused(capsys, None, "solve-dance", "--clip", clip, "--out", out, needles=needles)
+    assert not out.exists()
