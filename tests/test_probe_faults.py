@@ -656,3 +656,34 @@ def test_a_clip_in_degrees_or_with_nan_says_what_to_do(capsys, tmp_path, edit, n
     out = tmp_path / "art"
     assert_refused(capsys, None, "solve-dance", "--clip", clip, "--out", out, needles=needles)
     assert not out.exists()
+
+
+# ------------------------------------------------------------------ the wrong kind of input
+WRONG_INPUTS = [
+    (["eval", "FILE"], "is a file, not a run folder"),
+    (["eval", "EMPTY"], "is not a run folder"),
+    (["eval", "RUN/checkpoints/last.pt"], "its run folder above it"),
+    (["eval-curve", "FILE"], "is a file, not a run folder"),
+    (["eval-curve", "RUN/policy.onnx"], "its run folder above it"),
+    (["compare", "FILE", "--out", "OUT"], "is a file, not a run folder"),
+    (["compare", "EMPTY", "--out", "OUT"], "is not a run folder"),
+    (["train", "--resume", "FILE"], "is a file, not a run folder"),
+    (["solve-dance", "--clip", "EMPTY", "--out", "OUT"], "is not a file; check --clip"),
+    (["solve-dance", "--clip", "FILE", "--out", "OUT"], "use .csv or .npz"),
+    (["train", "--warmstart", "FILE", "--out", "OUT"], "nor an oracle artifact folder"),
+    (["train", "--task", "track", "--reference", "FILE", "--out", "OUT"], "use a .csv or .npz"),
+]
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"), WRONG_INPUTS, ids=[" ".join(a) for a, _ in WRONG_INPUTS]
+)
+def test_the_wrong_kind_of_input_is_one_line(capsys, probe_run, tmp_path, args, needle):
+    (tmp_path / "a_file.txt").write_text("hello")
+    (tmp_path / "empty").mkdir()
+    names = {"FILE": tmp_path / "a_file.txt", "EMPTY": tmp_path / "empty", "OUT": tmp_path / "out"}
+    args = [str(names[a]) if a in names else a.replace("RUN", str(probe_run)) for a in args]
+    before = snapshot(probe_run)
+    assert_refused(capsys, None, *args, needles=(needle,))
+    assert snapshot(probe_run) == before
+    assert not (tmp_path / "out").exists()

@@ -400,6 +400,12 @@ def read_config_file(run_dir: str | Path, sections: tuple[str, ...] = ("train",)
             for name in (CHECKPOINT_DIR, METRICS_LOG, METRICS_FILE, POLICY_FILE)
             if (Path(run_dir) / name).exists()
         ]
+        if Path(run_dir).is_file():  # a checkpoint or policy file given for its folder
+            raise FileNotFoundError(
+                f"'{run_dir}' is a file, not a run folder: give the folder `a2cf-mb train` wrote "
+                f"(for a file inside a run, e.g. {CHECKPOINT_DIR}/{LAST_CHECKPOINT}, its run "
+                "folder above it)"
+            )
         if held:  # a run's files without its config: nothing can rebuild its env or networks
             raise FileNotFoundError(
                 f"{path} not found, but '{run_dir}' holds a run's files ({', '.join(held)}): "
