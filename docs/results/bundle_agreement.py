@@ -33,7 +33,8 @@ from rl.runs.folder import load_run_config
 from rl.tasks.registry import get_task, make_env, resolve_task
 
 METRICS = ("survival_fraction", "mean_episode_length_steps", "joint_error_rad",
-           "pelvis_pos_error_m", "body_pos_error_m", "body_rel_error_m")  # fmt: skip
+           "pelvis_pos_error_m", "body_pos_error_m", "body_rel_error_m", "lin_vel_error_mps",
+           "yaw_rate_error_rps")  # fmt: skip
 
 
 def _option(argv: list[str], name: str, default: str) -> tuple[str, list[str]]:
@@ -80,19 +81,21 @@ def main(argv: list[str]) -> None:
         task = dataclasses.replace(
             task, observations=dataclasses.replace(task.observations, policy=policy_group)
         )
-    steps = json.loads((bundle / "policy.json").read_text())["episode"]["max_steps"]
+    facts = json.loads((bundle / "policy.json").read_text())
+    steps, script = facts["episode"]["max_steps"], ()
+    if hasattr(task.evaluation, "scripted"):  # a walk: both sides follow its scripted commands
+        task = dataclasses.replace(task, evaluation=task.evaluation.scripted())
+        script = tuple((seg.duration_s, seg.command) for seg in task.evaluation.command_script)
+        steps = round(sum(d for d, _ in script) * facts["control"]["policy_rate_hz"])
+    quiet_runner = dict(noise=False, randomize=False, pushes=False)
     rows = {
         "quiet": {
             "training_env": _row(training_env_result(bundle, quiet(task), cfg, n, steps)),
-            "runner": _row(
-                run_bundle(
-                    bundle, num_envs=n, num_steps=steps, noise=False, randomize=False, pushes=False
-                )  # fmt: skip
-            ),
+            "runner": _row(run_bundle(bundle, n, steps, script=script, **quiet_runner)),
         },
         "as_trained": {
             "training_env": _row(training_env_result(bundle, task, cfg, n, steps)),
-            "runner": _row(run_bundle(bundle, num_envs=n, num_steps=steps, seed=1)),
+            "runner": _row(run_bundle(bundle, n, steps, seed=1, script=script)),
         },
     }
     print(f"{bundle} ({n} robots, {steps} steps)")
