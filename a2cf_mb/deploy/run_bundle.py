@@ -14,16 +14,15 @@ tracking policy, ``reference.npz``. From them this script:
   spheres, link primitives, floor), per joint armature, damping and friction loss, one position
   actuator per joint (PD gains, effort limits) and the simulator options;
 * starts each robot as trained: the standing keyframe with the bundle's initial-state noise, or a
-  tracking reference's first frame (robot ``i`` tracks clip ``i mod C``);
+  tracking reference's first frame (robot ``i`` tracks clip ``i mod C``), and draws, unless told
+  not to, the domain randomisation (friction, payload, centre of mass: a model copy per robot)
+  and the pushes it was trained with;
 * each 50 Hz step rebuilds the observation term by term from the bundle's layout (with its
   training noise unless ``--no-noise``), keeps the history, runs the ONNX policy and holds the
   joint targets over ``decimation`` physics steps;
 * ends an episode on the bundle's terminations (a fall) or its time-out (the length cap, a
   reference's last frame), and scores it: survival, and the task's errors (tracking: joints,
   pelvis, tracked links; walk: velocity).
-
-* draws, unless told not to, the domain randomisation (friction, payload, centre of mass: one
-  model copy per robot) and the pushes the policy was trained with.
 
 What it does not do: terrain (the floor only), and commands beyond a constant velocity (or a
 script of them) and the gait clock.
