@@ -255,7 +255,7 @@ def test_training_can_push_harder_than_the_evaluations_judge():
 
     assert largest_kick(evaluation=False) > 0.8
     assert largest_kick(evaluation=True) < 0.2 + 0.05
-    with pytest.raises(ValueError, match="train_velocity_xy_mps"):
+    with pytest.raises(ValueError, match="--task-pushes-train-velocity-xy-mps"):
         variant(STAND, pushes=dict(train_velocity_xy_mps=-1.0))
 
 
@@ -281,7 +281,7 @@ def test_training_can_aim_the_pushes_backwards():
     assert (forward_kicks(evaluation=False) < 0.02).all()
     uniform = forward_kicks(evaluation=True)
     assert (uniform > 0.1).sum() > 5 and (uniform < -0.1).sum() > 5
-    with pytest.raises(ValueError, match="train_backward_share"):
+    with pytest.raises(ValueError, match="--task-pushes-train-backward-share"):
         variant(STAND, pushes=dict(train_backward_share=1.5))
 
 
