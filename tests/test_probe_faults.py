@@ -687,3 +687,11 @@ def test_the_wrong_kind_of_input_is_one_line(capsys, probe_run, tmp_path, args, 
     assert_refused(capsys, None, *args, needles=(needle,))
     assert snapshot(probe_run) == before
     assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_left_by_a_run_killed_before_its_config_says_to_start_it_again(capsys, tmp_path):
+    folder = tmp_path / "unstarted"
+    folder.mkdir()
+    (folder / LOCK_FILE).write_text("{}")
+    assert_refused(capsys, folder, "train", "--resume", folder,
+                   needles=("holds no run yet", "start it again with the same"))  # fmt: skip

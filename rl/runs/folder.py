@@ -412,6 +412,14 @@ def read_config_file(run_dir: str | Path, sections: tuple[str, ...] = ("train",)
                 f"restore {CONFIG_FILE} from a backup (no command can read the run without "
                 "it), or start a new run"
             )
+        folder = Path(run_dir)
+        left = sorted(e.name for e in folder.iterdir()) if folder.is_dir() else []
+        if left and all(n in (LOCK_FILE, "git") or n.startswith("events.out") for n in left):
+            raise FileNotFoundError(  # a new run stopped before its config: nothing to resume
+                f"{path} not found: '{run_dir}' holds no run yet ({', '.join(left)}: a new run "
+                "stopped before it wrote its config); start it again with the same `a2cf-mb "
+                "train ... --run-name` command, or delete the folder"
+            )
         raise FileNotFoundError(
             f"{path} not found: '{run_dir}' is not a run folder made by `a2cf-mb train`"
         )
