@@ -167,6 +167,22 @@ def git_revision(path: Path) -> dict[str, Any]:
     return {"commit": commit, "dirty": bool(status) if status is not None else None}
 
 
+def git_refusal(path: Path) -> str | None:
+    """Why git gives no commit for the checkout holding ``path`` although it is one (git's first
+    line, e.g. its "dubious ownership" of a checkout owned by another user); None when git
+    reads it, or ``path`` is in no git checkout (an installed package) or git is missing."""
+    try:
+        done = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=path, capture_output=True, text=True, timeout=10
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    said = done.stderr.strip().splitlines()
+    if done.returncode == 0 or not said or "not a git repository" in said[0]:
+        return None
+    return said[0].removeprefix("fatal: ")
+
+
 def check_writable_dir(path: str | Path, what: str) -> Path:
     """Make sure files can be created in folder ``path`` (created if missing); returns it.
 

@@ -695,3 +695,15 @@ def test_a_folder_left_by_a_run_killed_before_its_config_says_to_start_it_again(
     (folder / LOCK_FILE).write_text("{}")
     assert_refused(capsys, folder, "train", "--resume", folder,
                    needles=("holds no run yet", "start it again with the same"))  # fmt: skip
+
+
+def test_git_refusing_a_checkout_is_named_not_silent(monkeypatch, tmp_path):
+    """A checkout git will not read (another user's: "dubious ownership") records no commit in
+    git.json; git_refusal gives git's reason for train's warning. Outside any checkout: none."""
+    import optimal_control.files as files
+
+    assert files.git_refusal(tmp_path) is None  # no checkout: nothing to warn about
+    said = "fatal: detected dubious ownership in repository at '/work/main'\nmore"
+    refused = subprocess.CompletedProcess(["git"], 128, stdout="", stderr=said)
+    monkeypatch.setattr(files.subprocess, "run", lambda *a, **k: refused)
+    assert files.git_refusal(tmp_path) == "detected dubious ownership in repository at '/work/main'"

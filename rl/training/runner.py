@@ -50,6 +50,7 @@ from optimal_control.files import (
     atomic_write_bytes,
     atomic_write_json,
     atomic_write_text,
+    git_refusal,
     git_revision,
 )
 from rl.a2cf.algorithm1 import (
@@ -707,7 +708,17 @@ def _write_run_config(
             "eta0": algorithm1.curriculum.eta0.tolist() if algorithm1 is not None else None,
         },
     )
-    atomic_write_json(run_dir / GIT_FILE, git_revision(Path(__file__).resolve().parent))
+    code = Path(__file__).resolve().parent
+    revision = git_revision(code)
+    atomic_write_json(run_dir / GIT_FILE, revision)
+    refusal = git_refusal(code) if revision["commit"] is None else None
+    if refusal:  # e.g. a checkout owned by another user: the run would not name its code
+        print(
+            f"a2cf-mb train: warning: {run_dir / GIT_FILE} records no commit: git says "
+            f"'{refusal}' (a checkout owned by another user: git config --global --add "
+            f"safe.directory {code.parents[1]})",
+            file=sys.stderr,
+        )
 
 
 def _learn(runner: A2CFRunner, cfg: TrainConfig, random_start: bool) -> None:
