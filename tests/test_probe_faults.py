@@ -707,3 +707,11 @@ def test_git_refusing_a_checkout_is_named_not_silent(monkeypatch, tmp_path):
     refused = subprocess.CompletedProcess(["git"], 128, stdout="", stderr=said)
     monkeypatch.setattr(files.subprocess, "run", lambda *a, **k: refused)
     assert files.git_refusal(tmp_path) == "detected dubious ownership in repository at '/work/main'"
+
+
+@pytest.mark.parametrize("how", ["half", "deleted"])
+def test_compare_of_a_damaged_tensorboard_file_says_so(capsys, run, tmp_path, how):
+    damage_file(run, "events", how)
+    with pytest.warns(UserWarning, match="TensorBoard files of .* damaged or missing"):
+        code, err = run_cli(capsys, "compare", run, "--out", tmp_path / "cmp")
+    assert code == 0, err

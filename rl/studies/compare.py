@@ -14,6 +14,7 @@ force (assistance switched off, 0.1 N by default), final tracking error with ass
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -91,6 +92,15 @@ def load_run(run_dir: str | Path) -> dict[str, Any]:
     iterations = np.array([r["iteration"] for r in rows], dtype=float)
     env_steps = np.cumsum([r["env_steps"] for r in rows]).astype(float)
     scalars = _scalars(run_dir)
+    logged = max((int(v[:, 0].max()) for v in scalars.values() if len(v)), default=-1)
+    if logged < iterations[-1]:  # a damaged or missing TensorBoard file: say so, not silently
+        where = f"end at iteration {logged}" if logged >= 0 else "hold no readable scalar"
+        warnings.warn(
+            f"the TensorBoard files of {run_dir} {where}, its metrics at "
+            f"{int(iterations[-1])}: they are damaged or missing, so the curves read from them "
+            "(terrain level, tracking terms) stop there",
+            stacklevel=2,
+        )
     dt_s = MujocoModelConfig().timestep_s * config["env"]["decimation"]
     weights = {t["name"]: t["weight"] for t in config["task"]["rewards"]}
 
