@@ -99,12 +99,14 @@ def main(argv: list[str]) -> None:
         },
     }
     print(f"{bundle} ({n} robots, {steps} steps)")
-    print(f"{'':<28}{'quiet: training':>16}{'runner':>9}{'as trained: training':>22}{'runner':>9}")
+    print(
+        f"{'':<28}{'quiet: training':>16}{'runner':>10}{'as trained: training':>22}{'runner':>10}"
+    )
     for key in METRICS:
         values = [rows[s][side].get(key) for s in rows for side in ("training_env", "runner")]
         if all(v is not None for v in values):
             print(
-                f"{key:<28}{values[0]:>16.4f}{values[1]:>9.4f}{values[2]:>22.4f}{values[3]:>9.4f}"
+                f"{key:<28}{values[0]:>16.4f}{values[1]:>10.4f}{values[2]:>22.4f}{values[3]:>10.4f}"
             )
     if out:
         Path(out).write_text(json.dumps({"bundle": str(bundle), "num_envs": n, **rows}, indent=2))
