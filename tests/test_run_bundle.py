@@ -151,6 +151,28 @@ def test_a_tracking_bundle_plays_its_reference_as_the_training_env_does(tmp_path
     assert theirs["task_metrics"]["joint_error_rad"] > 10 * 1e-3
 
 
+def test_a_walk_bundle_follows_its_velocity_command_as_the_training_env_does(tmp_path) -> None:
+    from rl.tasks.walk.task import WALK_FLAT
+
+    task = quiet(WALK_FLAT)
+    task = dataclasses.replace(task, evaluation=task.evaluation.scripted())
+    env = make_env(task, 2, num_threads=1)
+    bundle = export_policy(env, tmp_path / "walk", np.zeros(29), weight_std=0.05)
+    parts = [p["name"] for t in bundle["observation"]["terms"] for p in t.get("parts", [])]
+    assert "gait_clock" in parts  # the runner reads its period from the part's text
+    ours = training_rollout(env, tmp_path / "walk")
+    env.close()
+    first = task.evaluation.command_script[0]  # STEPS stay within the script's first segment
+    assert first.duration_s * 50 > STEPS and any(first.command)
+    script = ((first.duration_s, first.command),)
+    theirs = runner.run_bundle(tmp_path / "walk", num_envs=2, num_steps=STEPS, noise=False,
+                               script=script)  # fmt: skip
+    assert ours["survival_fraction"] == theirs["survival_fraction"]
+    assert ours["mean_episode_length_steps"] == theirs["mean_episode_length_steps"]
+    for key in ("lin_vel_error_mps", "yaw_rate_error_rps"):  # same episodes: rounding only
+        assert abs(ours["task_metrics"][key] - theirs["task_metrics"][key]) < 1e-6, key
+
+
 def test_eval_takes_a_bundle_folder(tmp_path, capsys) -> None:
     env = make_env(quiet(STAND), 2, num_threads=1)
     export_policy(env, tmp_path / "stand", np.zeros(29), weight_std=0.0)
