@@ -56,6 +56,12 @@ URDF_DIR_ENV = "A2CF_G1_DESCRIPTION_DIR"
 """An environment variable naming a g1_description folder (``urdf/`` inside) to use instead."""
 
 
+GEOM_FIELDS = {"size": list, "pos": list, "quat": list, "friction": list, "solref": list,
+               "solimp": list, "contype": int, "conaffinity": int, "condim": int, "priority": int,
+               "margin": float, "gap": float, "solmix": float}  # fmt: skip
+"""The fields of a bundle geom and their types."""
+
+
 class BundleError(ValueError):
     """The bundle folder cannot be played: what is missing or wrong, and what to do."""
 
@@ -133,12 +139,9 @@ def build_model(bundle: dict[str, Any], urdf: str | Path | None = None) -> mujoc
         geom = body.add_geom(
             name=g["name"], type=getattr(mujoco.mjtGeom, f"mjGEOM_{g['type'].upper()}")
         )
-        for field in ("size", "pos", "quat", "friction", "solref", "solimp"):
-            setattr(geom, field, g[field])
-        for field in ("contype", "conaffinity", "condim", "priority"):
-            setattr(geom, field, int(g[field]))
-        for field in ("margin", "gap", "solmix"):
-            setattr(geom, field, float(g[field]))
+        for field, kind in GEOM_FIELDS.items():  # one left out is at MuJoCo's default
+            if field in g:
+                setattr(geom, field, kind(g[field]))
     for joint, extra in zip(bundle["joints"], facts["joints"], strict=True):
         spec_joint = spec.joint(joint["name"])
         spec_joint.armature = extra["armature_kgm2"]

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +35,10 @@ REFERENCE_FILE = "reference.npz"
 
 GEOM_FIELDS = ("size", "pos", "quat", "contype", "conaffinity", "condim", "friction", "solref",
                "solimp", "margin", "gap", "priority", "solmix")  # fmt: skip
-"""The compiled model's ``geom_<field>`` arrays a colliding geom is described by."""
+"""The compiled model's ``geom_<field>`` arrays a colliding geom is described by (those other
+than :data:`GEOM_ALWAYS` only where they differ from MuJoCo's default geom)."""
+GEOM_ALWAYS = ("size", "pos", "quat")
+"""The geom fields every entry has."""
 
 OPTION_FIELDS = ("timestep", "integrator", "cone", "solver", "iterations", "ls_iterations",
                  "tolerance", "impratio", "gravity", "disableflags", "enableflags", "noslip_iterations",
@@ -58,6 +63,17 @@ def _option(opt: Any, field: str) -> Any:
     return OPTION_ENUMS[field](value).name if field in OPTION_ENUMS else _plain(value)
 
 
+def write_bundle_json(path: str | Path, description: dict[str, Any]) -> Path:
+    """Write ``policy.json``: indented, each list of plain numbers on one line (a geom's size, a
+    frame of the feed-forward table), which keeps the file a few times smaller than one number
+    per line; floats keep their full precision."""
+    from optimal_control.files import atomic_write_text
+
+    text = json.dumps(description, indent=2)
+    text = re.sub(r"\[([-+0-9.eE,\s]*)\]", lambda m: "[" + " ".join(m.group(1).split()) + "]", text)
+    return atomic_write_text(path, text + "\n")
+
+
 def sha256_file(path: str | Path) -> str:
     """Hex sha256 of a file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
@@ -69,6 +85,7 @@ def model_facts(env: Any) -> dict[str, Any]:
     from robots.assets import G1_URDF_NAME, g1_urdf_path
 
     model = env.physics.model
+    default = mujoco.MjSpec().worldbody.add_geom()  # a field at its default is left out
     geoms = []
     for g in range(model.ngeom):
         if not (model.geom_contype[g] or model.geom_conaffinity[g]):
@@ -81,7 +98,10 @@ def model_facts(env: Any) -> dict[str, Any]:
             "body": model.body(model.geom_bodyid[g]).name,
             "type": geom_type.name.removeprefix("mjGEOM_").lower(),
         }
-        entry.update({f: _plain(getattr(model, f"geom_{f}")[g]) for f in GEOM_FIELDS})
+        for field in GEOM_FIELDS:
+            value = _plain(getattr(model, f"geom_{field}")[g])
+            if field in GEOM_ALWAYS or value != _plain(getattr(default, field)):
+                entry[field] = value
         geoms.append(entry)
     types = {mujoco.mjtGeom(t) for t in model.geom_type}
     dofs = [model.joint(j.name).dofadr[0] for j in g1.JOINTS]
@@ -105,6 +125,7 @@ def model_facts(env: Any) -> dict[str, Any]:
         "actuator": "one MuJoCo position actuator per joint (kp, kv = kd of `joints`, forcerange "
         "+-effort_limit_nm, ctrl = target_rad): the PD law runs inside the integrator",
         "geoms": geoms,
+        "geom_defaults": "a field left out of a geom is at MuJoCo's default (MjSpec's add_geom)",
         "terrain": "flat"
         if mujoco.mjtGeom.mjGEOM_HFIELD not in types and len(geoms) == _flat_geoms(model)
         else "not flat: the training scene had terrain geoms beyond the floor",

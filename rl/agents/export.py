@@ -24,8 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from optimal_control.files import atomic_write_json
-from rl.agents.bundle import episode_facts, model_facts, write_reference
+from rl.agents.bundle import episode_facts, model_facts, write_bundle_json, write_reference
 from rl.agents.models import A2CFActor, MotionPolicy
 from rl.runs.folder import (
     POLICY_BUNDLE_FILE,
@@ -238,7 +237,7 @@ def export_motion_policy(
     reference = write_reference(path.parent, env) if env is not None else None
     if reference is not None:
         description["reference"] = reference
-    atomic_write_json(path.with_suffix(".json"), description)
+    write_bundle_json(path.with_suffix(".json"), description)
     return description
 
 
@@ -253,8 +252,6 @@ def refresh_bundle(folder: str | Path, env: Any) -> dict[str, Any]:
     whole without its checkpoint. Refuses an ``env`` whose policy interface differs from the
     bundle's (observation terms and columns, history, command blocks, action base, feed-forward
     table), which would describe another policy. Returns the new ``policy.json``."""
-    from optimal_control.files import atomic_write_json
-
     path = Path(folder) / POLICY_BUNDLE_FILE
     old = json.loads(path.read_text())
     new = deployment_bundle(env)
@@ -286,7 +283,7 @@ def refresh_bundle(folder: str | Path, env: Any) -> dict[str, Any]:
     reference = write_reference(path.parent, env)
     if reference is not None:
         description["reference"] = reference
-    atomic_write_json(path, description)
+    write_bundle_json(path, description)
     return description
 
 
