@@ -40,6 +40,7 @@ from a2cf_mb.demo_report import (
     RUNS_DIR,
     SUMMARY_FILE,
     VIDEOS_DIR,
+    ZOO_DIR,
     build_summary,
     oracle_entry,
     plot_curves,
@@ -48,6 +49,8 @@ from a2cf_mb.demo_report import (
     render_report,
     verdict,
 )
+from a2cf_mb.play import JUDGE_FILE, zoo_skills
+from a2cf_mb.play import ZOO_DIR as SKILLS_DIR
 from a2cf_mb.progress import (
     Stage,
     StatusBoard,
@@ -118,6 +121,7 @@ class DemoConfig:
     evals: int = 10  # evaluations of each policy alone, the last at the end [-]
     eval_envs: int = 32  # envs of the final evaluations, one episode each [-]
     video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl)
+    zoo: bool = True  # first play the zoo's learned skills (with --video: videos, contact sheets)
     out: str = "demo"  # output folder: report.md, summary.json, runs/, ... [-]
     overwrite: bool = False  # replace the output folder of an earlier demo
 
@@ -234,6 +238,7 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
 
     out = Path(cfg.out).expanduser().absolute()
     check_output(out, cfg.overwrite)
+    cfg = _without_video_where_none_can_be_made(cfg, stream)
     commands = {name: train_arguments(cfg, name, out) for name in (BASELINE, A2CF)}
     for arguments in commands.values():
         check_train_arguments(arguments)
@@ -251,7 +256,11 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
         f"a2cf-mb demo: {TASK}, baseline vs A2CF warm-started from the oracle; {cfg.num_envs} envs "
         f"x {cfg.iterations} iterations per run, seed {cfg.seed}, one core each -> {out}"
     )
-    times = run_lanes([[_oracle_stage(out)]], board, env)
+    times: dict[str, float] = {}
+    zoo: dict[str, Any] = {}
+    if cfg.zoo and cfg.video:  # the zoo is videos
+        zoo = play_zoo(out, board, env)
+    times.update(run_lanes([[_oracle_stage(out)]], board, env))
     lanes = [
         _run_lane(cfg, name, arguments, out, task.target.metric)
         for name, arguments in commands.items()
@@ -293,6 +302,7 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
         seed_spread=seed_spread(cfg.iterations * cfg.num_envs * NUM_STEPS_PER_ENV),
     )
     summary["figure"] = plot_curves(out, summary)
+    summary["zoo"] = zoo
     atomic_write_json(out / SUMMARY_FILE, summary)
     report = out / REPORT_FILE
     atomic_write_text(report, render_report(summary, out))
@@ -301,6 +311,66 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
         + verdict(summary)
     )
     return report
+
+
+def _without_video_where_none_can_be_made(cfg: DemoConfig, stream: IO[str] | None) -> DemoConfig:
+    """``cfg``, with ``video`` off (and a line saying why) where no offscreen GL context can be
+    made: the evaluations refuse ``--video`` up front there, and the figures matter more."""
+    from optimal_control.render import RenderUnavailableError, check_offscreen_rendering
+
+    if not cfg.video:
+        return cfg
+    try:
+        check_offscreen_rendering()
+    except RenderUnavailableError as err:
+        print(f"a2cf-mb demo: no videos on this machine ({err}); figures only", file=stream)
+        return dataclasses.replace(cfg, video=False)
+    return cfg
+
+
+def play_zoo(out: Path, board: StatusBoard, env: dict[str, str]) -> dict[str, Any]:
+    """Stage 0: ``a2cf-mb play SKILL`` for every zoo skill, two lanes side by side, into
+    ``<out>/zoo/`` (a video and a contact sheet each), then ``zoo.png``, every skill's sheet one
+    above the other; returns per skill its video, sheet and judge figures (empty: no zoo)."""
+    skills = zoo_skills()
+    if not skills:
+        board.message("[0/3] zoo: no learned skills installed (a2cf_mb/zoo/); skipped")
+        return {}
+    folder = out / ZOO_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    board.message(f"[0/3] zoo: the learned skills, played from their bundles: {', '.join(skills)}")
+
+    def stage(skill: str) -> Stage:
+        argv = ["play", skill, "--out", str(folder / f"{skill}.mp4")]
+        return Stage(
+            label=f"play {skill}",
+            argv=child_command(argv),
+            log=out / LOGS_DIR / f"play_{skill}.log",
+            status=lambda t: f"{'play':<10} {clock_str(t):>7}  {skill}: rollout and video",
+            done=lambda wall_s: (
+                f"[0/3] play {skill}: {folder / f'{skill}.mp4'} ({duration_str(wall_s)})"
+            ),
+            start=f"[0/3] play {skill}: a2cf-mb {shlex.join(argv)}",
+        )
+
+    run_lanes([[stage(s) for s in skills[0::2]], [stage(s) for s in skills[1::2]]], board, env)
+    import imageio.v3 as iio
+    import numpy as np
+
+    sheets = [iio.imread(folder / f"{s}.png") for s in skills]
+    width = max(sheet.shape[1] for sheet in sheets)
+    rows = [np.pad(s, ((0, 0), (0, width - s.shape[1]), (0, 0))) for s in sheets]
+    iio.imwrite(folder / "zoo.png", np.concatenate(rows, axis=0))
+    return {
+        skill: {
+            "video": relative(str(folder / f"{skill}.mp4"), out),
+            "contact_sheet": relative(str(folder / f"{skill}.png"), out),
+            "judge": json.loads((SKILLS_DIR / skill / JUDGE_FILE).read_text())
+            if (SKILLS_DIR / skill / JUDGE_FILE).is_file()
+            else None,
+        }
+        for skill in skills
+    }
 
 
 def _oracle_stage(out: Path) -> Stage:

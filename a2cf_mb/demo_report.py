@@ -39,8 +39,9 @@ ORACLE_DIR = "oracle"
 RUNS_DIR = "runs"
 VIDEOS_DIR = "videos"
 LOGS_DIR = "logs"
+ZOO_DIR = "zoo"
 DEMO_ENTRIES = frozenset(
-    {REPORT_FILE, SUMMARY_FILE, CURVES_FILE, ORACLE_DIR, RUNS_DIR, VIDEOS_DIR, LOGS_DIR}
+    {REPORT_FILE, SUMMARY_FILE, CURVES_FILE, ORACLE_DIR, RUNS_DIR, VIDEOS_DIR, LOGS_DIR, ZOO_DIR}
 )
 """What a demo writes into its output folder; ``--overwrite`` deletes only a folder holding
 nothing else."""
@@ -336,6 +337,28 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
     ]
 
 
+def _zoo_section(zoo: dict[str, Any]) -> list[str]:
+    """report.md's first section: each zoo skill's video, contact sheet and confirmed figures."""
+    if not zoo:
+        return []
+    lines = [
+        "## 0. What the toolkit has learned (the zoo)",
+        "Each skill's best confirmed policy, played from its bundle alone by the standalone "
+        "runner (`a2cf-mb play SKILL`): nominal model, no pushes.",
+        "",
+    ]
+    for skill, entry in zoo.items():
+        judge = entry.get("judge") or {}
+        lines += [
+            f"- **{skill}**: [video]({entry['video']}); judge: {judge.get('judge', '-')}; "
+            f"confirmed: {judge.get('confirmed', '-')}",
+            "",
+            f"  ![{skill}]({entry['contact_sheet']})",
+            "",
+        ]
+    return lines
+
+
 def render_report(summary: dict[str, Any], out: Path) -> str:
     """report.md from summary.json's content (figures linked relative to ``out``)."""
     cfg, oracle, runs, target = (summary[k] for k in ("config", "oracle", "runs", "target"))
@@ -406,6 +429,7 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             + ". Numbers: "
             f"[summary.json]({SUMMARY_FILE}); logs: `{LOGS_DIR}/`.",
             "",
+            *_zoo_section(summary.get("zoo") or {}),
             "## 1. The oracle",
             f"`{oracle['command']}` ({duration_str(oracle['wall_time_s'])}): the built-in "
             "choreography, the per-frame wrench QP along it, and the initial assist bound eta0 "

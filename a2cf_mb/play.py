@@ -116,7 +116,31 @@ def play(target: str | Path, cfg: PlayConfig = PlayConfig()) -> dict[str, Any]:
         captions=captions if script else None,
     )  # fmt: skip
     result["video"] = str(video)
+    # the sheet's frames spread evenly over the motion, not the time (a flip is half a second)
+    moved = np.abs(np.diff(np.stack(qpos), axis=0)).sum(axis=1)
+    result["contact_sheet"] = str(contact_sheet(video, video.with_suffix(".png"), moved))
     judge = folder / JUDGE_FILE
     if judge.is_file():
         result["judge"] = json.loads(judge.read_text())
     return result
+
+
+def contact_sheet(
+    video: str | Path, path: str | Path, motion: np.ndarray | None = None, frames: int = 6
+) -> Path:
+    """A row of ``frames`` frames of ``video`` as one PNG at ``path`` (a picture a README or report
+    can show): evenly spaced in time, or, given ``motion`` (T - 1,) (how much the robot moved at
+    each step of the T rendered), evenly spaced in the motion done so far."""
+    import imageio.v3 as iio
+
+    images = list(iio.imiter(video))
+    count = len(images)
+    if motion is not None and motion.sum() > 0:
+        done = np.concatenate([[0.0], np.cumsum(motion)]) / motion.sum()  # (T,) in [0, 1]
+        steps = np.searchsorted(done, np.linspace(0.0, 1.0, frames)).clip(max=len(done) - 1)
+        picks = np.round(steps * (count - 1) / max(len(done) - 1, 1)).astype(int)
+    else:
+        picks = np.round(np.linspace(0, count - 1, frames)).astype(int)
+    path = Path(path)
+    iio.imwrite(path, np.concatenate([images[i] for i in picks], axis=1))
+    return path

@@ -388,3 +388,10 @@ def test_demo_with_videos(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     for run in summary["runs"].values():
         assert (run["video"] and (out / run["video"]).stat().st_size > 0) or run["video_note"]
+    # the zoo first: each learned skill's video and contact sheet, linked from the report
+    for skill, entry in summary["zoo"].items():
+        assert (out / entry["video"]).stat().st_size > 0, skill
+        assert (out / entry["contact_sheet"]).stat().st_size > 0, skill
+    if summary["zoo"]:
+        assert "## 0. What the toolkit has learned" in (out / "report.md").read_text()
+        assert (out / "zoo" / "zoo.png").is_file()
