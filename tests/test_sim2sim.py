@@ -70,6 +70,11 @@ def replay_commands(task: TaskConfig, num_envs: int, seed: int, state, num_steps
         part.reset_state(ids, qpos, qvel, generator)
     command.reset(ids)
     phases.reset(ids)
+    if getattr(task.evaluation, "judge_kinds", False):  # the walk's judge holds a kind per env
+        from rl.tasks.walk.evaluation import JUDGED_KINDS, judged_commands
+
+        kinds, held = judged_commands(task.commands, num_envs)
+        command.hold(kinds != JUDGED_KINDS.index("mixed"), held)
     out = [command.compute(state, 0.0).clone()]
     for _ in range(num_steps - 1):
         out.append(command.compute(state, state.step_dt_s).clone())
@@ -168,9 +173,13 @@ def test_eval_sim2sim_of_a_walk_flat_run_follows_the_velocity_command(tmp_path, 
     ]
 
     # Commands redrawn every 0.1-0.3 s: sim2sim shows the policy what the generator draws, when
-    # the training env would (same seed, same schedule).
+    # the training env would (same seed, same schedule); the judge's held kinds off, so that
+    # every env draws.
+    from rl.tasks.walk.evaluation import WalkEvaluationConfig
+
     task = dataclasses.replace(
         WALK_FLAT,
+        evaluation=WalkEvaluationConfig(),
         commands=dataclasses.replace(
             WALK_FLAT.commands, resampling_time_range_s=(0.1, 0.3), curriculum_initial_scale=0.3
         ),
