@@ -45,6 +45,7 @@ from optimal_control.files import read_npz
 from optimal_control.motion_clip import (
     ClipConfig,
     ClipError,
+    check_radians,
     read_clip,
     reference_from_clip_rows,
 )
@@ -297,19 +298,7 @@ def _check_clip_rows(
             f"{label}: the reference lasts {span_s:.2f} s ({rows.shape[0]} frames at {fps:g} fps), "
             f"shorter than {min_duration_s:g} s; give a longer clip or a wider {flag}."
         )
-    _check_radians(rows[:, 7:], g1.JOINT_NAMES, label)
-
-
-def _check_radians(joint_pos: np.ndarray, names: tuple[str, ...] | None, label: str) -> None:
-    """Reject joint angles (T, J) beyond 2 pi: no G1 joint turns that far, degrees do."""
-    over = np.abs(np.nan_to_num(joint_pos)) > 2 * np.pi
-    if over.any():
-        row, j = (int(i) for i in np.argwhere(over)[0])
-        joint = f"joint '{names[j]}'" if names is not None else f"joint column {j}"
-        raise ClipError(
-            f"{label}: {joint} = {joint_pos[row, j]:.1f} at frame {row} is beyond 2 pi rad: the "
-            "angles look like degrees; convert them to radians."
-        )
+    check_radians(rows[:, 7:], g1.JOINT_NAMES, label)
 
 
 # --- whole_body_tracking / mjlab motion NPZ ---------------------------------------------------
@@ -392,7 +381,7 @@ def _wbt_rows(
             f"{label}: 'body_quat_w' of body 0 (the pelvis) at frame {worst} has norm "
             f"{norms[worst]:.4f}, not 1; quaternions must be unit, w x y z."
         )
-    _check_radians(joint_pos, names, label)
+    check_radians(joint_pos, names, label)
     if names is None:
         if joint_pos.shape[1] != g1.NUM_JOINTS:
             raise ClipError(
