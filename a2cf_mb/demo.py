@@ -121,7 +121,7 @@ class DemoConfig:
     evals: int = 10  # evaluations of each policy alone, the last at the end [-]
     eval_envs: int = 32  # envs of the final evaluations, one episode each [-]
     video: bool = True  # a video of each final evaluation (needs MUJOCO_GL=egl)
-    zoo: bool = True  # first play the zoo's learned skills (with --video: videos, contact sheets)
+    zoo: bool = True  # first play the zoo's learned skills (needs --video)
     out: str = "demo"  # output folder: report.md, summary.json, runs/, ... [-]
     overwrite: bool = False  # replace the output folder of an earlier demo
 
