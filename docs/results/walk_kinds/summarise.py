@@ -48,7 +48,12 @@ def summarise(run_dir: Path) -> dict:
         for r in rows
     ]
     pair = next(
-        (a for a, b in zip(evals, evals[1:]) if a["target_reached"] and b["target_reached"]), None
+        (
+            a
+            for a, b in zip(evals, evals[1:], strict=False)
+            if a["target_reached"] and b["target_reached"]
+        ),
+        None,
     )
     return {"run": run_dir.name, "evals": evals, "held_twice_at": pair}
 
