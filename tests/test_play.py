@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_run_bundle import export_policy
 
 from a2cf_mb.cli import main as cli_main
 from a2cf_mb.deploy import run_bundle as runner
@@ -15,7 +16,6 @@ from a2cf_mb.play import PlayConfig, play, resolve_bundle, walk_script, zoo_skil
 from rl.envs.task_schema import quiet
 from rl.tasks.registry import make_env
 from rl.tasks.walk.task import WALK_FLAT
-from test_run_bundle import export_policy
 
 
 def test_a_walk_bundle_follows_the_script_and_is_rendered(tmp_path: Path) -> None:
