@@ -20,19 +20,19 @@ def reference_for_bundle(cmd: Any) -> tuple[dict[str, np.ndarray], dict[str, Any
     as the policy reads it."""
     lib = cmd.motion
     clips = lib.clips
-    start, length = clips.start.numpy(), clips.length.numpy()
+    start, length = clips.start.cpu().numpy(), clips.length.cpu().numpy()
     arrays = {
         "qpos": np.asarray(clips.qpos, dtype=np.float64),
         "qvel": np.asarray(clips.qvel, dtype=np.float64),
         "floor_shift_m": np.asarray(clips.floor_shift_m, dtype=np.float64),
-        "joint_pos_rad": lib.joint_pos_rad.numpy(),
-        "joint_vel_rps": lib.joint_vel_rps.numpy(),
-        "body_pos_w": lib.body_pos_w.numpy(),
-        "body_quat_w": lib.body_quat_w.numpy(),
-        "body_lin_vel_w": lib.body_lin_vel_w.numpy(),
-        "body_ang_vel_w": lib.body_ang_vel_w.numpy(),
-        "joint_torque_nm": lib.joint_torque_nm.numpy(),
-        "phase": lib.phase.numpy().astype(np.int64),
+        "joint_pos_rad": lib.joint_pos_rad.cpu().numpy(),
+        "joint_vel_rps": lib.joint_vel_rps.cpu().numpy(),
+        "body_pos_w": lib.body_pos_w.cpu().numpy(),
+        "body_quat_w": lib.body_quat_w.cpu().numpy(),
+        "body_lin_vel_w": lib.body_lin_vel_w.cpu().numpy(),
+        "body_ang_vel_w": lib.body_ang_vel_w.cpu().numpy(),
+        "joint_torque_nm": lib.joint_torque_nm.cpu().numpy(),
+        "phase": lib.phase.cpu().numpy().astype(np.int64),
         "clip_start": start.astype(np.int64),
         "clip_length": length.astype(np.int64),
     }
