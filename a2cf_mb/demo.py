@@ -49,7 +49,7 @@ from a2cf_mb.demo_report import (
     render_report,
     verdict,
 )
-from a2cf_mb.play import JUDGE_FILE, zoo_skills
+from a2cf_mb.play import JUDGE_FILE, write_png, zoo_skills
 from a2cf_mb.play import ZOO_DIR as SKILLS_DIR
 from a2cf_mb.progress import (
     Stage,
@@ -360,7 +360,7 @@ def play_zoo(out: Path, board: StatusBoard, env: dict[str, str]) -> dict[str, An
     sheets = [iio.imread(folder / f"{s}.png") for s in skills]
     width = max(sheet.shape[1] for sheet in sheets)
     rows = [np.pad(s, ((0, 0), (0, width - s.shape[1]), (0, 0))) for s in sheets]
-    iio.imwrite(folder / "zoo.png", np.concatenate(rows, axis=0))
+    write_png(folder / "zoo.png", np.concatenate(rows, axis=0))
     return {
         skill: {
             "video": relative(str(folder / f"{skill}.mp4"), out),

@@ -141,6 +141,13 @@ def contact_sheet(
         picks = np.round(steps * (count - 1) / max(len(done) - 1, 1)).astype(int)
     else:
         picks = np.round(np.linspace(0, count - 1, frames)).astype(int)
-    path = Path(path)
-    iio.imwrite(path, np.concatenate([images[i] for i in picks], axis=1))
-    return path
+    return write_png(path, np.concatenate([images[i] for i in picks], axis=1))
+
+
+def write_png(path: str | Path, image: np.ndarray) -> Path:
+    """Write ``image`` (H, W, 3) uint8 as a PNG at ``path``, whole or not at all (atomic)."""
+    import imageio.v3 as iio
+
+    from optimal_control.files import atomic_write_bytes
+
+    return atomic_write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"))

@@ -9,9 +9,9 @@ Writes DIR/summary.json and DIR/curves.png (DIR: this folder by default).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from optimal_control.files import atomic_savefig, atomic_write_json
 from rl.runs.folder import read_run_jsonl
 from rl.tasks.walk.evaluation import JUDGED_KINDS
 
@@ -83,7 +83,7 @@ def plot(summaries: list[dict], path: Path) -> None:
     axes.flat[0].legend(fontsize=7)
     fig.suptitle("walk-flat, policy alone (32 fresh envs): every command kind judged")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_savefig(fig, path, dpi=90)
     plt.close(fig)
 
 
@@ -94,7 +94,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path(__file__).parent)
     args = parser.parse_args()
     summaries = [summarise(r) for r in args.runs]
-    (args.out / "summary.json").write_text(json.dumps(summaries, indent=1) + "\n")
+    atomic_write_json(args.out / "summary.json", summaries, indent=1)
     plot(summaries, args.out / "curves.png")
     for s in summaries:
         last = s["evals"][-1] if s["evals"] else None

@@ -163,8 +163,9 @@ class WalkEvaluator:
             env.command_gen.follow_script(self.script)
             self.kinds = tuple(seg.name for seg in self.script)
         elif cfg.judge_kinds:
-            self.env_kind, commands = judged_commands(env.command_gen.cfg, n)
-            env.command_gen.hold(self.env_kind != JUDGED_KINDS.index("mixed"), commands)
+            kind, commands = judged_commands(env.command_gen.cfg, n)
+            env.command_gen.hold(kind != JUDGED_KINDS.index("mixed"), commands)
+            self.env_kind = kind.to(env.command_gen.device)  # read every step, on the env's device
             self.kinds = JUDGED_KINDS
         else:
             self.kinds = COMMAND_KINDS
@@ -186,7 +187,7 @@ class WalkEvaluator:
         lin = (s.base_lin_vel_b[:, :2] - s.command[:, :2]).norm(dim=-1)
         yaw = (s.base_ang_vel_b[:, 2] - s.command[:, 2]).abs()
         if self.env_kind is not None:
-            kind = self.env_kind.to(s.command.device)
+            kind = self.env_kind
         elif self.script:
             kind = env.command_gen.segment()
         else:
