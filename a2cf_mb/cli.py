@@ -159,11 +159,14 @@ USER_ERROR_NAMES: tuple[str, ...] = (
     "BackflipAuditError",
     "RunFolderBusyError",
     "MissingExtraError",
+    "RenderUnavailableError",
+    "ViewerUnavailableError",
 )
 """Outcomes of a valid run that the user resolves by changing the problem, installing an extra
-(``MissingExtraError``: the message says which), or by waiting for the process that writes the
-same run folder (matched by class name so this module does not import the
-solvers or the trainer)."""
+(``MissingExtraError``: the message says which), running where a GL context or a display exists
+(``RenderUnavailableError``, ``ViewerUnavailableError``), or by waiting for the process that
+writes the same run folder (matched by class name so this module does not import the solvers or
+the trainer)."""
 
 
 FULL_DISK_ERRNOS: tuple[int, ...] = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)

@@ -12,7 +12,16 @@ from test_run_bundle import export_policy
 
 from a2cf_mb.cli import main as cli_main
 from a2cf_mb.deploy import run_bundle as runner
-from a2cf_mb.play import PlayConfig, play, resolve_bundle, walk_script, zoo_skills
+from a2cf_mb.play import (
+    KeyboardCommand,
+    PlayConfig,
+    ViewerUnavailableError,
+    check_display,
+    play,
+    resolve_bundle,
+    walk_script,
+    zoo_skills,
+)
 from optimal_control.render import RenderUnavailableError
 from rl.envs.task_schema import quiet
 from rl.tasks.registry import make_env
@@ -50,3 +59,52 @@ def test_every_zoo_bundle_names_its_judge() -> None:
         assert (folder / "policy.onnx").is_file()
         judge = json.loads((folder / "judge.json").read_text())
         assert {"skill", "judge", "source_run", "confirmed"} <= set(judge)
+
+
+def test_the_keyboard_steers_a_walk_within_its_training_ranges() -> None:
+    keys = KeyboardCommand.for_walk()
+    for _ in range(3):
+        keys.press(265)  # up
+    keys.press(44)  # comma: left
+    keys.press(262)  # right arrow: clockwise
+    assert np.allclose(keys.at(0.0), [0.3, 0.1, -0.2])
+    for _ in range(50):
+        keys.press(264)  # down, past the range's end
+    assert np.isclose(keys.velocity[0], keys.low[0]) and keys.low[0] < 0
+    keys.press(ord("C"))  # the viewer's own key: no change
+    assert np.isclose(keys.velocity[0], keys.low[0])
+    keys.press(KeyboardCommand.STOP)
+    assert np.allclose(keys.velocity, 0.0) and "vx +0.0" in keys.caption()
+
+
+def test_a_live_command_drives_the_runner_as_the_script_does(tmp_path: Path) -> None:
+    """``command_at`` (the viewer's keyboard) and ``script`` give the same rollout for the same
+    commands: the live path is the scripted one."""
+    env = make_env(quiet(WALK_FLAT), 1, num_threads=1)
+    export_policy(env, tmp_path / "walk", np.zeros(29), weight_std=0.0)
+    script = ((0.1, (0.5, 0.0, 0.0)), (0.2, (0.0, 0.3, -0.4)))
+
+    def live(t_s: float) -> tuple[float, float, float]:
+        return script[0][1] if t_s < 0.1 - 1e-9 else script[1][1]
+
+    runs = []
+    for kwargs in ({"script": script}, {"command_at": live}):
+        seen: list[np.ndarray] = []
+        result = runner.run_bundle(tmp_path / "walk", num_envs=2, num_steps=12, seed=3,
+                                   on_step=lambda q, g, v, seen=seen: seen.append(v), **kwargs)  # fmt: skip
+        runs.append((result, np.stack(seen)))
+    assert runs[0][0] == runs[1][0] and np.array_equal(runs[0][1], runs[1][1])
+    assert np.allclose(runs[1][1][0], [0.5, 0.0, 0.0]) and np.allclose(
+        runs[1][1][-1], [0.0, 0.3, -0.4]
+    )
+
+
+def test_the_viewer_without_a_display_is_refused_in_one_line(monkeypatch, capsys) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    with pytest.raises(ViewerUnavailableError, match="needs a display"):
+        check_display()
+    assert cli_main(["play", "walk", "--viewer"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--viewer" in err[0]

@@ -27,9 +27,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Call :func:`a2cf_mb.play.play` and print its figures and the video's path."""
-    from a2cf_mb.play import PlayConfig, play
+    """Call :func:`a2cf_mb.play.play` (or :func:`~a2cf_mb.play.view` with ``--viewer``) and print its figures and the video's path."""
+    from a2cf_mb.play import PlayConfig, play, view
 
-    result = play(args.target, config_from_args(PlayConfig, args))
+    cfg = config_from_args(PlayConfig, args)
+    result = (view if cfg.viewer else play)(args.target, cfg)
     print(json.dumps(result, indent=2))
     return 0

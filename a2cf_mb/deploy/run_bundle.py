@@ -40,7 +40,7 @@ import re
 import site
 import sys
 import sysconfig
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -520,6 +520,7 @@ def run_bundle(
     urdf: str | Path | None = None,
     script: tuple[tuple[float, tuple[float, float, float]], ...] = (),
     on_step: Callable[[np.ndarray, np.ndarray | None, np.ndarray], None] | None = None,
+    command_at: Callable[[float], Sequence[float]] | None = None,
     randomize: bool = True,
     pushes: bool = True,
 ) -> dict[str, Any]:
@@ -532,6 +533,8 @@ def run_bundle(
     them);
     ``velocity``: (vx [m/s], vy [m/s], yaw rate [rad/s]) for a policy that reads one (walk);
     ``script``: ((duration [s], velocity), ...) in place of it, by episode time (the last held);
+    ``command_at(t)``: in place of both, the velocity at episode time t [s] (a live command, e.g.
+    the keyboard's in a viewer);
     ``on_step(qpos, reference_qpos, velocity)`` sees robot 0 after each of its steps (a video's
     frames): its MuJoCo qpos (nq,), its reference pose (nq,) for a tracking policy (else None)
     and the velocity command (3,)."""
@@ -566,7 +569,9 @@ def run_bundle(
     ends_s = np.cumsum([d for d, _ in script]) if script else None
     for k in range(num_steps):
         command.steps = k
-        if script:
+        if command_at is not None:
+            command.velocity = np.asarray(command_at(k * command.dt_s), dtype=np.float64)
+        elif script:
             segment = min(
                 int(np.searchsorted(ends_s, k * command.dt_s, side="right")), len(script) - 1
             )
