@@ -1,14 +1,19 @@
-"""``a2cf-mb demo``: one task end to end, the G1 dance, in about 10 minutes on 2 CPU cores.
+"""``a2cf-mb demo``: learned skills first, then one learning story end to end on 2 CPU cores.
 
-1. The oracle: ``a2cf-mb solve-dance`` (the built-in choreography -> per-frame wrench QP over an
-   alpha sweep -> eta0 -> artifact with plots) into ``<out>/oracle/``.
+0. The zoo: each learned skill's bundle played (``a2cf-mb play``), a video and a contact sheet.
+1. For the dance only, the oracle: ``a2cf-mb solve-dance`` (the built-in choreography -> per-frame
+   wrench QP over an alpha sweep -> eta0 -> artifact with plots) into ``<out>/oracle/``.
 2. Two training runs side by side, one per core, same seed, envs and budget: ``baseline`` (no
-   assist agent) and ``a2cf_warm`` (A2CF, its force agent warm-started from the oracle's coach and
-   bounds, plus :data:`A2CF_VARIANT_FLAGS`). Both evaluate their policy alone (assistance off)
-   ``DemoConfig.evals`` times during training.
+   assist agent) and ``a2cf_warm`` (A2CF, its force agent warm-started from the story's coach:
+   the posture coach for ``stand``, the oracle's for ``dance``, plus :data:`A2CF_VARIANT_FLAGS`).
+   Both evaluate their policy alone (assistance off) ``DemoConfig.evals`` times during training.
 3. As each run ends, its motion policy is evaluated alone in the training physics and in the
    second simulator (``a2cf-mb eval --sim2sim``), with a video when rendering works.
 4. ``summary.json`` (the numbers) and ``report.md`` (the figures, the numbers and what they show).
+
+The default story is ``stand`` (standing under pushes), the one skill whose target a policy alone
+reaches within the demo's budget; ``--task dance`` tells the dance's, which does not get there in
+that budget (docs/results/track_learn).
 
 Every stage is a child process (``python -m a2cf_mb ...``, one thread each) logging to
 ``<out>/logs/``; the terminal shows each training run's iteration, env steps, episode length,
@@ -69,25 +74,50 @@ from optimal_control.files import (
 )
 from rl.runs.folder import EVAL_FILE, METRICS_FILE, RunFolderLock, StaleLockWarning
 
-TASK = "dance"
-"""The demo's task: the paper's dance, tracked (``track`` on the built-in 19 s choreography) and
-judged by a measure a statue fails (docs/results/track_learn measures it over seeds)."""
-RECIPE_FLAGS: tuple[str, ...] = (
-    "--ppo-num-learning-epochs",
-    "2",
-    "--model-vae-learning-epochs",
-    "1",
-)
-"""``a2cf-mb train`` flags of both runs: 2 PPO passes and 1 encoder pass per rollout instead of
-dance's 5 and 5 (stand's default), a shorter update that learns as fast per env step (what it
-measured: docs/training.md, "Why these defaults")."""
+ORACLE = "oracle"
+"""A story's warm start that is the oracle solved first (``solve-dance``), not a built-in coach."""
+
+
+@dataclass(frozen=True)
+class Story:
+    """What the demo's two runs learn: the task, the A2CF run's warm start (:data:`ORACLE` or a
+    built-in coach, :data:`rl.a2cf.coaches.COACHES`), the update flags of both runs, and where its
+    figures over seeds are measured."""
+
+    task: str
+    warmstart: str
+    recipe_flags: tuple[str, ...]
+    help_text: str  # what the A2CF run's force agent starts from (the report's section 1)
+    study: str  # the study that measures the baseline on this target over seeds
+
+
+STORIES: dict[str, Story] = {
+    "stand": Story(
+        task="stand",
+        warmstart="posture",
+        recipe_flags=(),
+        help_text="the built-in posture coach: a PD on pelvis tilt and height beyond a tolerance "
+        "band, its gains from the G1's mass and inertia (rl/a2cf/coaches.py), distilled into the "
+        "force agent before PPO; the bound starts at the task's eta0 below",
+        study="docs/results/stand_judge/README.md",
+    ),
+    "dance": Story(
+        task="dance",
+        warmstart=ORACLE,
+        # 2 PPO passes and 1 encoder pass per rollout instead of dance's 5 and 5 (stand's
+        # default): a shorter update that learns as fast per env step (docs/training.md)
+        recipe_flags=("--ppo-num-learning-epochs", "2", "--model-vae-learning-epochs", "1"),
+        help_text="the oracle's coach, distilled into the force agent before PPO; the bound "
+        "starts at the oracle's eta0",
+        study="docs/results/track_learn",
+    ),
+}
+"""The demo's learning stories by task name (``--task``)."""
 A2CF_VARIANT_FLAGS: tuple[str, ...] = ()
-"""``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <oracle>``; the report
+"""``a2cf-mb train`` flags of the A2CF run beyond ``--mode a2cf --warmstart <coach>``; the report
 and summary.json print them. Empty: the default curriculum (the help gone after 200 iterations by
 the fixed schedule, sooner where the helped skill holds 0.6 of its target; no force rule; a quarter
-of the envs never helped; the learning rate set by the motion actions' KL; docs/training.md).
-With the demo's 400 iterations the help is gone halfway: the second half shows the motion policy
-alone."""
+of the envs never helped; the learning rate set by the motion actions' KL; docs/training.md)."""
 
 
 SEED_SPREAD_FILE = Path(__file__).resolve().parents[1] / "docs/results/track_learn/seed_spread.json"
@@ -115,7 +145,8 @@ def seed_spread(env_steps: int) -> dict[str, Any] | None:
 class DemoConfig:
     """Budget and outputs of ``a2cf-mb demo`` (the dance, oracle to evaluation)."""
 
-    iterations: int = 400  # PPO iterations per run, num_envs x 24 env steps each [-]
+    task: str = "stand"  # the story: stand (the target in budget) or dance [-]
+    iterations: int = 480  # PPO iterations per run, num_envs x 24 env steps each [-]
     num_envs: int = 128  # parallel envs of each training run [-]
     seed: int = 0  # seed of both runs [-]
     evals: int = 10  # evaluations of each policy alone, the last at the end [-]
@@ -126,11 +157,18 @@ class DemoConfig:
     overwrite: bool = False  # replace the output folder of an earlier demo
 
     def __post_init__(self) -> None:
-        """Check sizes before any work."""
+        """Check the story and sizes before any work."""
+        if self.task not in STORIES:
+            raise ValueError(f"demo --task {self.task!r}: choose one of {', '.join(STORIES)}")
         for name in ("iterations", "num_envs", "evals", "eval_envs"):
             if getattr(self, name) < 1:
                 flag = "--" + name.replace("_", "-")
                 raise ValueError(f"demo {flag} must be >= 1, got {getattr(self, name)}")
+
+    @property
+    def story(self) -> Story:
+        """The learning story of :attr:`task`."""
+        return STORIES[self.task]
 
     @property
     def eval_interval(self) -> int:
@@ -141,16 +179,18 @@ class DemoConfig:
 # ------------------------------------------------------------------------------------ commands
 def train_arguments(cfg: DemoConfig, name: str, out: Path) -> list[str]:
     """``a2cf-mb`` arguments of training run ``name`` (:data:`BASELINE` or :data:`A2CF`)."""
+    story = cfg.story
     common = [
-        "train", "--task", TASK, "--iterations", str(cfg.iterations),
+        "train", "--task", story.task, "--iterations", str(cfg.iterations),
         "--num-envs", str(cfg.num_envs), "--seed", str(cfg.seed),
         "--torch-threads", "1", "--env-num-threads", "1",
         "--eval-interval", str(cfg.eval_interval), "--save-interval", str(cfg.iterations),
-        "--out", str(out / RUNS_DIR), "--run-name", name, *RECIPE_FLAGS,
+        "--out", str(out / RUNS_DIR), "--run-name", name, *story.recipe_flags,
     ]  # fmt: skip
     if name == BASELINE:
         return [*common, "--mode", "baseline"]
-    return [*common, "--mode", "a2cf", "--warmstart", str(out / ORACLE_DIR), *A2CF_VARIANT_FLAGS]
+    warm = str(out / ORACLE_DIR) if story.warmstart == ORACLE else story.warmstart
+    return [*common, "--mode", "a2cf", "--warmstart", warm, *A2CF_VARIANT_FLAGS]
 
 
 def eval_arguments(cfg: DemoConfig, name: str, out: Path) -> list[str]:
@@ -248,36 +288,45 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
             shutil.rmtree(entry)
         else:
             entry.unlink()
-    task = get_task(TASK)
+    story = cfg.story
+    task = get_task(story.task)
     board = StatusBoard(stream if stream is not None else sys.stdout)
     env = child_env()
     start = time.monotonic()
+    coach = "the oracle" if story.warmstart == ORACLE else f"the {story.warmstart} coach"
     board.message(
-        f"a2cf-mb demo: {TASK}, baseline vs A2CF warm-started from the oracle; {cfg.num_envs} envs "
-        f"x {cfg.iterations} iterations per run, seed {cfg.seed}, one core each -> {out}"
+        f"a2cf-mb demo: {story.task}, baseline vs A2CF warm-started from {coach}; {cfg.num_envs} "
+        f"envs x {cfg.iterations} iterations per run, seed {cfg.seed}, one core each -> {out}"
     )
     times: dict[str, float] = {}
     zoo: dict[str, Any] = {}
     if cfg.zoo and cfg.video:  # the zoo is videos
         zoo = play_zoo(out, board, env)
-    times.update(run_lanes([[_oracle_stage(out)]], board, env))
+    oracle = None
+    if story.warmstart == ORACLE:
+        times.update(run_lanes([[_oracle_stage(out)]], board, env))
+        command = "a2cf-mb " + shlex.join(oracle_arguments(Path("OUT")))
+        oracle = oracle_entry(out, command, times["oracle"])
     lanes = [
         _run_lane(cfg, name, arguments, out, task.target.metric)
         for name, arguments in commands.items()
     ]
     times.update(run_lanes(lanes, board, env))
 
+    fall_error = getattr(task.skill, "fall_error_rad", None)
     summary = build_summary(
-        TASK,
+        story.task,
         config={
             **dataclasses.asdict(cfg),
             "eval_interval": cfg.eval_interval,
             "a2cf_variant_flags": list(A2CF_VARIANT_FLAGS),
-            "recipe_flags": list(RECIPE_FLAGS),
+            "recipe_flags": list(story.recipe_flags),
+            "warmstart": story.warmstart,
+            "help": story.help_text,
+            "study": story.study,
+            "eta0": [list(row) for row in task.assist_bound],
         },
-        oracle=oracle_entry(
-            out, "a2cf-mb " + shlex.join(oracle_arguments(Path("OUT"))), times["oracle"]
-        ),
+        oracle=oracle,
         runs={
             name: read_run(
                 out,
@@ -294,12 +343,14 @@ def run_demo(cfg: DemoConfig = DemoConfig(), stream: IO[str] | None = None) -> P
             "metric": task.target.metric,
             "max_metric": task.target.max_metric,
             "min_survival": task.target.min_survival,
-            "fall_error": task.skill.fall_error_rad,
-            "one_episode_of_the_mean": task.skill.fall_error_rad / cfg.eval_envs,
+            "fall_error": fall_error,
+            "one_episode_of_the_mean": (fall_error or 1.0) / cfg.eval_envs,
             "episode_length_s": task.episode_length_s,
         },
         wall_time_s=time.monotonic() - start,
-        seed_spread=seed_spread(cfg.iterations * cfg.num_envs * NUM_STEPS_PER_ENV),
+        seed_spread=seed_spread(cfg.iterations * cfg.num_envs * NUM_STEPS_PER_ENV)
+        if story.task == "dance"
+        else None,
     )
     summary["figure"] = plot_curves(out, summary)
     summary["zoo"] = zoo

@@ -176,12 +176,20 @@ def run_entry(
     }
 
 
+SURVIVAL = "survival_fraction"
+"""What runs are compared by where the task's target is survival alone (no skill metric)."""
+
+
 def compare(runs: dict[str, dict[str, Any]], metric: str) -> dict[str, Any]:
     """Which run's policy alone is ahead by ``metric`` (lower is better, as the task's target
-    bounds it above); ``ahead`` None when they are level or the metric is missing."""
-    values = {name: run["alone"].get(metric) for name, run in runs.items()}
+    bounds it above), or by survival (higher is better) where the task has no metric (``""``);
+    ``ahead`` None when they are level or the metric is missing."""
+    key = metric or SURVIVAL
+    higher = not metric
+    values = {name: run["alone"].get(key) for name, run in runs.items()}
     result: dict[str, Any] = {
-        "metric": metric,
+        "metric": key,
+        "higher_is_better": higher,
         "values": values,
         "env_steps": {name: run["env_steps"] for name, run in runs.items()},
         "ahead": None,
@@ -189,9 +197,9 @@ def compare(runs: dict[str, dict[str, Any]], metric: str) -> dict[str, Any]:
     }
     if any(not isinstance(v, (int, float)) for v in values.values()):
         return result
-    (first, a), (second, b) = sorted(values.items(), key=lambda kv: kv[1])
-    if a < b:
-        result.update(ahead=first, by=b - a)
+    (first, a), (second, b) = sorted(values.items(), key=lambda kv: -kv[1] if higher else kv[1])
+    if a != b:
+        result.update(ahead=first, by=abs(b - a))
     return result
 
 
@@ -242,7 +250,7 @@ def plot_curves(out: Path, summary: dict[str, Any]) -> str:
 
     from rl.evaluation.alone import curve_arrays
 
-    metric = summary["target"]["metric"]
+    metric = summary["target"]["metric"] or "mean_episode_length_steps"
     fig, axes = plt.subplots(2, 2, figsize=(12, 7))
     for i, (name, run) in enumerate(summary["runs"].items()):
         color = f"C{i}"
@@ -263,13 +271,20 @@ def plot_curves(out: Path, summary: dict[str, Any]) -> str:
         axes[1, 0].plot(steps, force, color=color, label=f"{name}: force [N]")
         axes[1, 0].plot(steps, torque, color=color, ls="--", label=f"{name}: torque [N m]")
         axes[1, 1].plot(steps, [r["applied_force_n"] for r in rows], color=color, label=name)
-    axes[0, 0].axhline(summary["target"]["max_metric"], color="k", ls=":", lw=1, label="target")
+    if summary["target"]["metric"]:
+        axes[0, 0].axhline(summary["target"]["max_metric"], color="k", ls=":", lw=1, label="target")
     axes[0, 0].set_ylim(bottom=0.0)
+    axes[0, 1].axhline(summary["target"]["min_survival"], color="k", ls=":", lw=1, label="target")
     axes[0, 1].set_ylim(-0.03, 1.03)
     for ax in (axes[1, 0], axes[1, 1]):
         ax.set_ylim(bottom=0.0)
     titles = (
-        (f"policy alone: {metric} (lower is better)", "policy alone: survival [-]"),
+        (
+            f"policy alone: {metric} (lower is better)"
+            if summary["target"]["metric"]
+            else "policy alone: episode length [steps]",
+            "policy alone: survival [-]",
+        ),
         ("A2CF assist bound |eta| (largest phase)", "applied assist force [N]"),
     )
     for row, pair in zip(axes, titles, strict=True):
@@ -301,7 +316,12 @@ def verdict(summary: dict[str, Any]) -> str:
     if any(not isinstance(v, (int, float)) for v in values.values()):
         return f"No comparison: the evaluations have no {metric}."
     shown = " vs ".join(f"{n} {v:.3f}" for n, v in values.items())
-    target = f"target <= {summary['target']['max_metric']:g}"
+    target = (
+        f"target >= {summary['target']['min_survival']:g}"
+        if cmp.get("higher_is_better")
+        else f"target <= {summary['target']['max_metric']:g}"
+    )
+    direction = "higher" if cmp.get("higher_is_better") else "lower"
     if cmp["ahead"] is None:
         fell = all(r["alone"]["survival_fraction"] == 0.0 for r in runs.values())
         return (
@@ -311,7 +331,7 @@ def verdict(summary: dict[str, Any]) -> str:
     behind = next(n for n in runs if n != cmp["ahead"])
     text = (
         f"{cmp['ahead']} is ahead of {behind} by the policy-alone {metric} at {budget}: "
-        f"{shown}, {cmp['by']:.3f} lower ({target})."
+        f"{shown}, {cmp['by']:.3f} {direction} ({target})."
     )
     width = spread_of(summary)
     if width is not None:
@@ -366,10 +386,17 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
     base, a2cf = runs[BASELINE], runs[A2CF]
     warm = a2cf["warmstart"] or {}
     per_run = base["num_envs"] * base["num_steps_per_env"]
+    if oracle:
+        phases, eta0 = oracle["phases"], oracle["eta0"]
+    else:
+        eta0 = cfg.get("eta0") or []
+        phases = [summary["task"]] if len(eta0) == 1 else [f"phase {i}" for i in range(len(eta0))]
     eta_rows = [
-        [phase, *(f"{v:.1f}" for v in row)]
-        for phase, row in zip(oracle["phases"], oracle["eta0"], strict=True)
+        [phase, *(f"{v:.1f}" for v in row)] for phase, row in zip(phases, eta0, strict=True)
     ]
+    coach = "the oracle" if oracle else f"the {cfg.get('warmstart')} coach"
+    warm_flag = f"OUT/{ORACLE_DIR}" if oracle else cfg.get("warmstart")
+    metric_column = metric or "episode length [steps]"
 
     def reached_at(run: dict[str, Any]) -> str:
         at = run["alone_during_training"]["target_held_at"]
@@ -385,6 +412,8 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
     ]  # fmt: skip
 
     def value(run: dict[str, Any], key: str) -> str:
+        if not key:  # no skill metric: the episode length alone
+            return f"{run['alone']['mean_episode_length_steps']:.0f}"
         v = run["alone"]["task_metrics"].get(key)
         return f"{v:.3f}" if isinstance(v, (int, float)) else "-"
 
@@ -419,7 +448,7 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
     )
     return "\n".join(
         [
-            f"# a2cf-mb demo: {summary['task']}, baseline vs A2CF warm-started from the oracle",
+            f"# a2cf-mb demo: {summary['task']}, baseline vs A2CF warm-started from {coach}",
             "",
             f"One task end to end, {duration_str(summary['wall_time_s'])} on this machine. "
             f"Both runs: seed {cfg['seed']}, {base['num_envs']} envs x "
@@ -430,18 +459,29 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             f"[summary.json]({SUMMARY_FILE}); logs: `{LOGS_DIR}/`.",
             "",
             *_zoo_section(summary.get("zoo") or {}),
-            "## 1. The oracle",
-            f"`{oracle['command']}` ({duration_str(oracle['wall_time_s'])}): the built-in "
-            "choreography, the per-frame wrench QP along it, and the initial assist bound eta0 "
-            "the A2CF run starts from (the baseline has no assist agent). Novice model: "
-            f"{oracle['novice_model']}. Frame of eta0: {oracle['eta0_frame']}.",
+            *(
+                [
+                    "## 1. The oracle",
+                    f"`{oracle['command']}` ({duration_str(oracle['wall_time_s'])}): the built-in "
+                    "choreography, the per-frame wrench QP along it, and the initial assist bound "
+                    "eta0 the A2CF run starts from (the baseline has no assist agent). Novice "
+                    f"model: {oracle['novice_model']}. Frame of eta0: {oracle['eta0_frame']}.",
+                ]
+                if oracle
+                else [
+                    "## 1. The help",
+                    f"The A2CF run's force agent starts from {cfg.get('help')}; the curriculum "
+                    "shrinks the bound to zero (the figure in section 2), so the final policy "
+                    "stands alone. The baseline has no assist agent.",
+                ]
+            ),
             "",
             *_table(
                 ["phase", "fx [N]", "fy [N]", "fz [N]", "mx [N m]", "my [N m]", "mz [N m]"],
                 eta_rows,
             ),
             "",
-            *[f"![{Path(p).name}]({p})" for p in oracle["plots"]],
+            *[f"![{Path(p).name}]({p})" for p in (oracle or {}).get("plots", [])],
             "",
             "## 2. Training: the same seed, envs and budget",
             *_table(
@@ -456,14 +496,16 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
                 train_rows,
             ),
             "",
-            f"`{A2CF}`: `--mode a2cf --warmstart OUT/{ORACLE_DIR}` {flags}. Before PPO its "
-            "warm start distilled the oracle's coach into the force "
+            f"`{A2CF}`: `--mode a2cf --warmstart {warm_flag}` {flags}. Before PPO its "
+            f"warm start distilled {coach}'s help into the force "
             f"agent in {warm.get('env_steps', 0):,} env steps, not counted in the budget above; "
             "held-out R^2 of the distilled head per axis: "
             + ", ".join(f"{k} {v:.2f}" for k, v in warm.get("held_out_r2", {}).items())
             + ".",
             "",
-            "Commands (as run, with `--out` and the oracle folder absolute):",
+            "Commands (as run, with `--out`"
+            + (" and the oracle folder" if oracle else "")
+            + " absolute):",
             "",
             *[f"- `{run['command']}`" for run in runs.values()],
             "",
@@ -487,6 +529,12 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
                 ]
                 if metric == "tracking_score"
                 else [
+                    f"The target is the policy alone's survival ({target['describe']}): the robot "
+                    f"up for the whole episode ({target['episode_length_s']:g} s) under the "
+                    "task's pushes. The video is env 0's episode."
+                ]
+                if not metric
+                else [
                     f"`{metric}` is the task's skill measure: the mean joint error at the episode's "
                     f"end, a fall counted as {target['fall_error']:g} rad; `joint_all_rad`: the mean "
                     "joint error over the steps the robot was up. The video is env 0's episode "
@@ -498,7 +546,7 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
                 [
                     "run",
                     "survival",
-                    metric,
+                    metric_column,
                     "joint error [rad]",
                     "target",
                     "survival (sim2sim)",
@@ -515,7 +563,7 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             "",
             f"- One seed and one budget: this is one comparison, not a measure of the spread "
             f"between seeds. One episode of {base['alone']['num_envs']} moves the mean "
-            f"`{metric}` by up to {target['one_episode_of_the_mean']:.3f}."
+            f"`{metric or SURVIVAL}` by up to {target['one_episode_of_the_mean']:.3f}."
             if spread_of(summary) is None
             else f"- One seed and one budget: this is one comparison. The spread between seeds "
             f"it must be read against: the baseline's `{metric}` "
@@ -539,9 +587,9 @@ def render_report(summary: dict[str, Any], out: Path) -> str:
             f"({LONGER_ITERATIONS * per_run:,} env steps per run; at the "
             f"{seconds_per_iteration:.2f} s per iteration measured here, about "
             f"{duration_str(LONGER_ITERATIONS * seconds_per_iteration)} of training, plus start-up "
-            "and evaluations). docs/results/track_learn measures the baseline's policy alone on "
-            "this target over 3 seeds (reached at 5.2-8.9 M env steps, each confirmed on 128 "
-            "fresh envs).",
+            f"and evaluations). {cfg.get('study') or 'docs/results/track_learn'} measures the "
+            "baseline's policy alone on this target over 3 seeds, each confirmed on 128 fresh "
+            "envs.",
             "",
         ]
     )

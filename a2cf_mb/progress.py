@@ -161,7 +161,7 @@ def format_train_status(name: str, snap: TrainSnapshot, elapsed_s: float, metric
     if snap.completed == 0:
         what = {
             "starting": "starting: imports, env",
-            "warm start": "warm start: distilling the assist head from the oracle's coach",
+            "warm start": "warm start: distilling the assist head from its coach",
             "first iteration": "first iteration",
         }.get(snap.phase, snap.phase)
         return f"{head}  {what}"

@@ -1,4 +1,5 @@
-"""``a2cf-mb demo``: the dance end to end: oracle, baseline vs warm-started A2CF, evaluation, report."""
+"""``a2cf-mb demo``: the zoo's learned skills, then one task end to end: baseline vs warm-started
+A2CF, evaluation alone, report."""
 
 from __future__ import annotations
 
@@ -14,15 +15,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     parser = subparsers.add_parser(
         "demo",
-        help="the dance end to end on 2 CPU cores: oracle, baseline vs warm-started A2CF, "
-        "evaluation alone, report",
-        description="One task end to end, the dance: solve its oracle (a2cf-mb solve-dance), train "
-        "a baseline and an A2CF run whose force agent is warm-started from the oracle, side by "
-        "side (one core each; same seed, envs and budget; each evaluates its policy alone during "
-        "training), evaluate both motion policies with assistance off in the training physics and "
-        "in sim2sim (videos when MUJOCO_GL=egl works), and write OUT/report.md and "
-        "OUT/summary.json. The terminal shows each run's iteration, env steps, episode length, "
-        "assist bound and ETA; every stage logs to OUT/logs/ (how long it takes: docs/training.md).",
+        help="the learned skills, then stand (or --task dance) end to end on 2 CPU cores: "
+        "baseline vs warm-started A2CF, evaluation alone, report",
+        description="Play the zoo's learned skills (videos and a contact sheet), then one task end "
+        "to end: train a baseline and an A2CF run whose force agent is warm-started (stand: from "
+        "the posture coach; --task dance: from the oracle, solved first with a2cf-mb "
+        "solve-dance), side by side (one core each; same seed, envs and budget; each evaluates "
+        "its policy alone during training), evaluate both motion policies with assistance off in "
+        "the training physics and in sim2sim (videos when MUJOCO_GL=egl works), and write "
+        "OUT/report.md and OUT/summary.json. The terminal shows each run's iteration, env steps, "
+        "episode length, assist bound and ETA; every stage logs to OUT/logs/.",
     )
     add_config_arguments(parser, DemoConfig)
     parser.set_defaults(func=run)
